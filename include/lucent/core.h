@@ -1,0 +1,160 @@
+/* lucent/core.h — results and errors, settings, threads, progress, time.
+ *
+ * Every fallible call returns an lu_result and, on failure, fills an lu_error
+ * whose message names the file, the line / byte offset / JSON path, and the
+ * reason: "scenes/x.json: $.lights[1].type: unknown light type \"area\"".
+ * Nothing in liblucent aborts on bad input. */
+#ifndef LUCENT_CORE_H
+#define LUCENT_CORE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define LU_VERSION_STRING "0.1.0"
+
+/* ---- results ---------------------------------------------------------- */
+
+typedef enum lu_result {
+    LU_OK = 0,
+    LU_ERR_INVALID_ARG,   /* a caller passed something meaningless           */
+    LU_ERR_IO,            /* open/read/write/rename failed                   */
+    LU_ERR_FORMAT,        /* malformed file: bad header, truncated, bad token */
+    LU_ERR_NONFINITE,     /* NaN or infinity where a finite number belongs   */
+    LU_ERR_RANGE,         /* a value outside its allowed range               */
+    LU_ERR_LIMIT,         /* input larger than an explicit limit (LU_MAX_*)  */
+    LU_ERR_NOMEM,         /* allocation failed                               */
+    LU_ERR_UNSUPPORTED,   /* valid input we do not handle (e.g. vec3 grids)  */
+    LU_ERR_SCENE,         /* scene JSON: unknown key, wrong type, missing key */
+    LU_ERR_BACKEND,       /* GPU / EGL / GL failure                          */
+    LU_ERR_COUNT
+} lu_result;
+
+/* Short stable identifier for a result: "LU_ERR_FORMAT". */
+const char *lu_result_name(lu_result r);
+
+typedef struct lu_error {
+    lu_result code;
+    char message[768];
+} lu_error;
+
+/* Formats message into err (if err is non-NULL) and returns code, so a
+ * failing path reads: return lu_fail(err, LU_ERR_FORMAT, "%s:%d: ...", ...); */
+lu_result lu_fail(lu_error *err, lu_result code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+/* Explicit limits: inputs beyond these are rejected with LU_ERR_LIMIT. */
+#define LU_MAX_IMAGE_DIM      16384
+#define LU_MAX_GRID_VOXELS    (512ull * 512ull * 512ull)
+#define LU_MAX_TRIANGLES      (64u * 1024u * 1024u)
+#define LU_MAX_VERTICES       (64u * 1024u * 1024u)
+#define LU_MAX_FILE_BYTES     (2ull * 1024ull * 1024ull * 1024ull)
+
+/* ---- settings: named values --------------------------------------------
+ * A small ordered list of key -> number(s) or string. Used for method
+ * parameters (--set afm.coeffs=16) and procedural generator parameters
+ * ({"procedural": "fbm_cloud", "octaves": 5}). Consumers reject keys they do
+ * not know (lu_kv_check_known) so typos are errors, not silent defaults. */
+
+#define LU_KV_KEY_MAX 64
+#define LU_KV_STR_MAX 256
+
+typedef struct lu_kv {
+    char key[LU_KV_KEY_MAX];
+    int count;                 /* numbers in v (1..4); 0 means a string value */
+    double v[4];
+    char str[LU_KV_STR_MAX];
+} lu_kv;
+
+typedef struct lu_kvlist {
+    lu_kv *items;
+    int count, capacity;
+} lu_kvlist;
+
+void lu_kv_free(lu_kvlist *list);
+lu_result lu_kv_set_number(lu_kvlist *list, const char *key, const double *v, int count, lu_error *err);
+lu_result lu_kv_set_string(lu_kvlist *list, const char *key, const char *value, lu_error *err);
+/* Parses "key=value" where value is a number, a comma list of up to 4
+ * numbers, or a string. */
+lu_result lu_kv_parse_assignment(lu_kvlist *list, const char *text, lu_error *err);
+const lu_kv *lu_kv_find(const lu_kvlist *list, const char *key);
+/* Number lookup with default; fails if the key exists but is not a number
+ * or is outside [lo, hi]. `where` prefixes the error ("afm", "$.media[0].density"). */
+lu_result lu_kv_number(const lu_kvlist *list, const char *key, double def, double lo, double hi,
+                       double *out, const char *where, lu_error *err);
+lu_result lu_kv_vec3(const lu_kvlist *list, const char *key, const double def[3], double out[3],
+                     const char *where, lu_error *err);
+/* Fails naming the first key not in the NULL-terminated `known` array. */
+lu_result lu_kv_check_known(const lu_kvlist *list, const char *const *known, const char *where,
+                            lu_error *err);
+
+/* ---- threads -----------------------------------------------------------
+ * One worker pool for the library. Thread count: LUCENT_THREADS env var, else
+ * the number of online processors. Work is handed out in chunks from an atomic
+ * counter, so results never depend on scheduling (each index is computed by
+ * exactly one call, with no shared accumulation). */
+
+typedef void (*lu_range_fn)(void *ctx, int64_t begin, int64_t end, int thread_index);
+
+int lu_thread_count(void);
+/* Calls fn over [0, n) split into chunks of `grain` (0 picks a default).
+ * progress_label, when non-NULL, drives a progress bar on stderr for runs
+ * over a second (see lu_progress). */
+void lu_parallel_for(int64_t n, int64_t grain, lu_range_fn fn, void *ctx, const char *progress_label);
+
+/* ---- progress ------------------------------------------------------------
+ * Silent for the first second; then a bar with percent and ETA on a TTY, or
+ * a line per 25 % otherwise. LUCENT_QUIET=1 silences it. */
+
+typedef struct lu_progress {
+    const char *label;
+    int64_t total;
+    double start_s;
+    double last_print_s;
+    int last_quarter;
+    bool printed;
+} lu_progress;
+
+void lu_progress_begin(lu_progress *p, const char *label, int64_t total);
+void lu_progress_update(lu_progress *p, int64_t done);
+void lu_progress_end(lu_progress *p);
+
+/* ---- time and memory -------------------------------------------------- */
+
+double lu_time_seconds(void);         /* monotonic clock */
+size_t lu_peak_rss_bytes(void);       /* peak resident set of this process */
+
+/* ---- small file helpers ------------------------------------------------
+ * Outputs are written to "<path>.tmp.<pid>" and renamed into place, so a
+ * failed write never leaves a half-written file under the final name. */
+
+typedef struct lu_atomic_file {
+    void *fp;                  /* FILE*, opened "wb" */
+    char final_path[1024];
+    char temp_path[1100];
+} lu_atomic_file;
+
+lu_result lu_atomic_open(lu_atomic_file *f, const char *path, lu_error *err);
+/* Flushes, closes and renames; on any earlier failure call lu_atomic_abort. */
+lu_result lu_atomic_commit(lu_atomic_file *f, lu_error *err);
+void lu_atomic_abort(lu_atomic_file *f);
+
+/* Reads a whole file (up to max_bytes) into a NUL-terminated buffer. */
+lu_result lu_read_file(const char *path, size_t max_bytes, char **data, size_t *size, lu_error *err);
+/* Lower-case extension after the last '.', "" if none; ".ply.gz" -> "gz". */
+const char *lu_path_ext(const char *path);
+bool lu_path_has_suffix(const char *path, const char *suffix); /* case-insensitive */
+/* Joins dir-of(base_file) with rel (unless rel is absolute) into out. */
+void lu_path_resolve(const char *base_file, const char *rel, char *out, size_t out_size);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

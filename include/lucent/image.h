@@ -1,0 +1,63 @@
+/* lucent/image.h — linear RGB float images, PNG/EXR/PFM I/O, error metrics.
+ *
+ * Pixels are linear radiance, 3 floats each, row 0 at the top. PNG output
+ * applies exposure and the sRGB transfer curve; EXR and PFM store the floats
+ * as they are (PFM rows are flipped on disk as the format requires). */
+#ifndef LUCENT_IMAGE_H
+#define LUCENT_IMAGE_H
+
+#include "core.h"
+#include "math.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct lu_image {
+    int width, height;
+    float *rgb;            /* width * height * 3, row-major, top row first */
+} lu_image;
+
+lu_result lu_image_create(lu_image *img, int width, int height, lu_error *err); /* zero-filled */
+void lu_image_destroy(lu_image *img);
+static inline float *lu_image_px(const lu_image *img, int x, int y) { return img->rgb + 3 * ((size_t)y * img->width + x); }
+
+typedef enum lu_image_format { LU_IMAGE_AUTO = 0, LU_IMAGE_PNG, LU_IMAGE_EXR, LU_IMAGE_PFM } lu_image_format;
+
+/* Format from the extension (.png .exr .pfm), LU_IMAGE_AUTO if unknown. */
+lu_image_format lu_image_format_from_path(const char *path);
+
+typedef struct lu_image_save_desc {
+    lu_image_format format;  /* 0: from the path's extension */
+    float exposure;          /* PNG only: multiply by 2^exposure before sRGB; 0 = none */
+    bool exr_half;           /* EXR only: store half floats (default: 32-bit float) */
+} lu_image_save_desc;
+
+/* Writes atomically (temporary name, then rename). desc may be NULL. */
+lu_result lu_image_save(const lu_image *img, const char *path, const lu_image_save_desc *desc, lu_error *err);
+/* Loads PNG (sRGB decoded to linear), EXR (R,G,B channels; Y as grey) or PFM
+ * (colour "PF" or grey "Pf"). Rejects non-finite values and sizes over
+ * LU_MAX_IMAGE_DIM with the file name and reason. */
+lu_result lu_image_load(const char *path, lu_image *img, lu_error *err);
+
+/* ---- metrics ---------------------------------------------------------- */
+
+typedef struct lu_metrics {
+    double rel_l2;   /* ||a - b||_2 / ||b||_2 over all channels (b is the reference) */
+    double rel_l1;   /* sum |a - b| / sum |b| */
+    double rmse;     /* sqrt(mean (a - b)^2) */
+    double psnr;     /* 10 log10(peak^2 / mse), peak = max value of b (1 if b <= 0); +inf if equal */
+    double max_abs;  /* largest |a - b| */
+} lu_metrics;
+
+/* Sizes must match. */
+lu_result lu_image_compare(const lu_image *a, const lu_image *b, lu_metrics *out, lu_error *err);
+/* False-colour |a - b| per pixel (luminance of the difference), mapped through
+ * a perceptual colour ramp; scale 0 picks the 99th percentile as full scale. */
+lu_result lu_image_diff_false_colour(const lu_image *a, const lu_image *b, float scale, lu_image *out,
+                                     lu_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

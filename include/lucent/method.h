@@ -1,0 +1,82 @@
+/* lucent/method.h — one interface for every rendering method.
+ *
+ * A method is a table: named parameters (with defaults and ranges), a
+ * prepare step (one-time / per-scene-change work, timed separately), a
+ * render step (per-frame work, reads camera and lights from the scene it is
+ * given), and destroy. All methods render the same lu_scene.
+ *
+ *   lu_renderer *r;
+ *   lu_renderer_create("reference", &scene, &settings, LU_BACKEND_CPU, &r, &err);
+ *   lu_renderer_render(r, &scene, &image, &err);
+ *   lu_renderer_destroy(r);
+ *
+ * Settings are "method.param" keys (e.g. "reference.spp" = 4). Keys naming
+ * another method are ignored; unknown methods or parameters are errors. */
+#ifndef LUCENT_METHOD_H
+#define LUCENT_METHOD_H
+
+#include "core.h"
+#include "image.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum lu_backend { LU_BACKEND_CPU = 1, LU_BACKEND_GPU = 2 } lu_backend;
+const char *lu_backend_name(lu_backend b);
+
+typedef enum lu_param_type { LU_PARAM_INT = 0, LU_PARAM_FLOAT, LU_PARAM_BOOL, LU_PARAM_CHOICE } lu_param_type;
+
+typedef struct lu_param_desc {
+    const char *name;
+    lu_param_type type;
+    double def, lo, hi;     /* CHOICE: def is the index into choices */
+    const char *choices;    /* CHOICE: "dipole|multipole|burley" */
+    const char *help;
+} lu_param_desc;
+
+#define LU_MAX_PARAMS 32
+
+typedef struct lu_method {
+    const char *name;
+    const char *summary;
+    unsigned backends;                  /* LU_BACKEND_CPU | LU_BACKEND_GPU */
+    const lu_param_desc *params;
+    int param_count;
+    /* params: resolved values in descriptor order (choices as indices). */
+    lu_result (*prepare)(const lu_scene *scene, const double *params, lu_backend backend, void **state,
+                         lu_error *err);
+    /* out is created by the caller at the camera's size. */
+    lu_result (*render)(void *state, const lu_scene *scene, lu_image *out, lu_error *err);
+    void (*destroy)(void *state);
+} lu_method;
+
+const lu_method *const *lu_methods(int *count);
+const lu_method *lu_method_find(const char *name);
+
+/* Resolves settings for method m into values[] (defaults, then overrides);
+ * checks ranges, integer-ness and choice names. */
+lu_result lu_method_resolve_params(const lu_method *m, const lu_kvlist *settings, double *values, lu_error *err);
+/* Validates every key of settings against the registry (method exists, param exists). */
+lu_result lu_settings_validate(const lu_kvlist *settings, lu_error *err);
+
+typedef struct lu_renderer {
+    const lu_method *method;
+    lu_backend backend;
+    double params[LU_MAX_PARAMS];
+    void *state;
+    double prepare_ms;       /* wall time of the prepare step */
+    double last_render_ms;   /* wall time of the latest render */
+} lu_renderer;
+
+lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu_kvlist *settings,
+                             lu_backend backend, lu_renderer **out, lu_error *err);
+/* Creates `out` at the camera size if it is empty (width 0), else requires that size. */
+lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err);
+void lu_renderer_destroy(lu_renderer *r);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

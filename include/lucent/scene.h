@@ -1,0 +1,126 @@
+/* lucent/scene.h — the scene every method renders (DESIGN.md §2, §6).
+ *
+ * A scene is loaded from the JSON contract in DESIGN.md and resolved into
+ * world space: meshes are transformed, grids keep their index space plus a
+ * composed index->world map, lights carry unit directions.
+ *
+ * Translucent objects (material "translucent") are not opaque surfaces. The
+ * loader also lists each as a bounded homogeneous medium (density 1, the
+ * material's coefficients in scene units, its mesh as the boundary) with
+ * `from_object` set, so single-scattering methods see it as a medium, while
+ * `bssrdf` renders the object itself and skips media with from_object >= 0. */
+#ifndef LUCENT_SCENE_H
+#define LUCENT_SCENE_H
+
+#include "core.h"
+#include "grid.h"
+#include "image.h"
+#include "math.h"
+#include "mesh.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct lu_camera {
+    lu_vec3 position, look_at, up;
+    float fov_y_deg;
+    int width, height;
+} lu_camera;
+
+typedef enum lu_light_type {
+    LU_LIGHT_POINT = 0,
+    LU_LIGHT_SPOT,
+    LU_LIGHT_DIRECTIONAL,
+    LU_LIGHT_ENVIRONMENT
+} lu_light_type;
+
+typedef struct lu_light {
+    lu_light_type type;
+    lu_vec3 position;       /* point, spot */
+    lu_vec3 direction;      /* unit. directional: towards the light; spot: where it shines */
+    lu_vec3 intensity;      /* point/spot: W/sr; directional: irradiance W/m^2 */
+    float inner_deg, outer_deg;   /* spot cone half-angles; smoothstep falloff between */
+    /* environment: equirectangular radiance map times scale. Direction d maps
+     * to u = 0.5 + atan2(d.x, -d.z) / (2 pi), v = acos(d.y) / pi (v = 0 top). */
+    lu_image env;
+    float env_scale;
+} lu_light;
+
+typedef enum lu_material_type { LU_MATERIAL_DIFFUSE = 0, LU_MATERIAL_TRANSLUCENT } lu_material_type;
+
+typedef struct lu_material {
+    lu_material_type type;
+    /* diffuse: Lambert + normalised Blinn-Phong */
+    lu_vec3 albedo;         /* default 0.8 */
+    lu_vec3 specular;       /* default 0 */
+    float shininess;        /* default 32 */
+    /* translucent: coefficients in scene units (mm values / mm_per_unit^-1) */
+    char preset[32];
+    lu_vec3 sigma_s;        /* scattering (reduced, as measured, with g = 0) */
+    lu_vec3 sigma_a;
+    float eta, g;
+    float mm_per_unit;      /* how many millimetres one scene unit is */
+} lu_material;
+
+/* Measured coefficients of Jensen et al. 2001 (Table 1), per millimetre. */
+typedef struct lu_material_preset {
+    const char *name;
+    float sigma_s_prime[3];
+    float sigma_a[3];
+    float eta;
+} lu_material_preset;
+const lu_material_preset *lu_material_presets(int *count);
+const lu_material_preset *lu_material_preset_find(const char *name);
+
+typedef enum lu_density_kind { LU_DENSITY_GRID = 0, LU_DENSITY_CONSTANT } lu_density_kind;
+
+typedef struct lu_medium {
+    lu_density_kind kind;
+    float constant;             /* LU_DENSITY_CONSTANT: density everywhere inside the boundary */
+    lu_grid grid;               /* LU_DENSITY_GRID: data in index space */
+    lu_affine index_to_world;   /* scene transform after the grid file's own map */
+    lu_affine world_to_index;
+    lu_vec3 sigma_a, sigma_s;   /* per scene unit at density 1 */
+    float phase_g;              /* Henyey-Greenstein g, 0 = isotropic */
+    bool has_boundary;          /* medium exists only inside this closed mesh */
+    lu_mesh boundary;           /* world space */
+    float eta;                  /* boundary index of refraction */
+    lu_material surface;        /* boundary reflection, weighted by (1 - F_t) */
+    lu_aabb bounds;             /* world box containing all non-zero density */
+    int from_object;            /* index of the translucent object it stands for, or -1 */
+} lu_medium;
+
+typedef struct lu_object {
+    lu_mesh mesh;               /* world space */
+    lu_material material;
+} lu_object;
+
+typedef struct lu_scene {
+    char path[1024];            /* the file it came from ("" for strings) */
+    lu_camera camera;
+    lu_vec3 background;         /* radiance of rays that hit nothing */
+    lu_light *lights;
+    int light_count;
+    lu_medium *media;
+    int medium_count;
+    lu_object *objects;
+    int object_count;
+} lu_scene;
+
+lu_result lu_scene_load(const char *path, lu_scene *scene, lu_error *err);
+/* base_path: file name used in messages and for resolving relative paths. */
+lu_result lu_scene_load_string(const char *json, const char *base_path, lu_scene *scene, lu_error *err);
+void lu_scene_destroy(lu_scene *scene);
+
+/* World box around all media (empty box if none). */
+lu_aabb lu_scene_media_bounds(const lu_scene *scene);
+/* World box around everything with geometry: media and objects. */
+lu_aabb lu_scene_bounds(const lu_scene *scene);
+/* Camera ray through image position (px, py), pixel centres at +0.5. d is unit. */
+void lu_camera_ray(const lu_camera *cam, float px, float py, lu_vec3 *o, lu_vec3 *d);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,68 @@
+/* Progress on stderr for long work: silent under a second, then a bar. */
+#include <lucent/core.h>
+
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <sys/resource.h>
+#include <time.h>
+#include <unistd.h>
+
+double lu_time_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+size_t lu_peak_rss_bytes(void) {
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0;
+    return (size_t)ru.ru_maxrss * 1024u;
+}
+
+static bool quiet(void) {
+    const char *q = getenv("LUCENT_QUIET");
+    return q && *q && *q != '0';
+}
+
+void lu_progress_begin(lu_progress *p, const char *label, int64_t total) {
+    p->label = label;
+    p->total = total > 0 ? total : 1;
+    p->start_s = lu_time_seconds();
+    p->last_print_s = 0.0;
+    p->last_quarter = 0;
+    p->printed = false;
+}
+
+void lu_progress_update(lu_progress *p, int64_t done) {
+    if (quiet()) return;
+    double now = lu_time_seconds();
+    double elapsed = now - p->start_s;
+    if (elapsed < 1.0) return;
+    double frac = (double)done / (double)p->total;
+    if (frac > 1.0) frac = 1.0;
+    double eta = frac > 0.0 ? elapsed * (1.0 - frac) / frac : 0.0;
+    if (isatty(STDERR_FILENO)) {
+        if (now - p->last_print_s < 0.1 && frac < 1.0) return;
+        char bar[31];
+        int filled = (int)(frac * 30.0);
+        for (int i = 0; i < 30; i++) bar[i] = i < filled ? '#' : '.';
+        bar[30] = '\0';
+        fprintf(stderr, "\r%s [%s] %5.1f%%  %6.1fs elapsed  ETA %6.1fs ", p->label, bar, 100.0 * frac, elapsed, eta);
+        p->last_print_s = now;
+        p->printed = true;
+    } else {
+        int quarter = (int)(frac * 4.0);
+        if (quarter > p->last_quarter) {
+            p->last_quarter = quarter;
+            fprintf(stderr, "%s: %3.0f%% after %.1fs, ETA %.1fs\n", p->label, 100.0 * frac, elapsed, eta);
+        }
+    }
+}
+
+void lu_progress_end(lu_progress *p) {
+    if (p->printed) {
+        fprintf(stderr, "\r%s done in %.1fs%40s\n", p->label, lu_time_seconds() - p->start_s, "");
+        p->printed = false;
+    }
+}

@@ -1,0 +1,113 @@
+/* lu_kernel.h — the common subset of C11 and GLSL 4.50 that kernel headers
+ * are written in (the way PNanoVDB.h is one file for both).
+ *
+ * Rules for kernel headers (src/kernels/*.h):
+ *   - include this file first; guard with #ifndef/#define (GLSL has them);
+ *   - functions are declared `LU_FN float f(...)`; no pointers: use
+ *     LU_INOUT(T)/LU_OUT(T) parameters, pass with LU_REF(x), read with LU_DEREF(x);
+ *   - vectors are `vec3` with .x .y .z; arithmetic through lu_v3_* (math.h
+ *     in C, lu_prelude.glsl in GLSL); scalars through lu_exp, lu_sqrt, ...;
+ *   - structs: `struct lu_k_x { ... };` followed by LU_TYPEDEF(lu_k_x) (no semicolon:
+ *     GLSL 4.50 rejects a lone one at global scope);
+ *   - float literals with an f suffix (valid in both); no recursion, no
+ *     variable-length arrays, no library calls beyond the macros below.
+ * The GPU backend prepends "#version 450 core" and "#define LU_GLSL 1" and
+ * resolves #include lines when it assembles a shader. */
+#ifndef LU_KERNEL_H
+#define LU_KERNEL_H
+
+#ifdef LU_GLSL
+/* ---------------------------------------------------------------- GLSL */
+#define LU_FN
+#define LU_INOUT(T) inout T
+#define LU_OUT(T) out T
+#define LU_REF(x) x
+#define LU_DEREF(x) x
+#define LU_TYPEDEF(name)
+#define LU_CONST const
+#define lu_exp exp
+#define lu_log log
+#define lu_sqrt sqrt
+#define lu_pow pow
+#define lu_abs abs
+#define lu_floor floor
+#define lu_ceil ceil
+#define lu_min min
+#define lu_max max
+#define lu_sin sin
+#define lu_cos cos
+#define lu_acos acos
+#define lu_atan2 atan
+#define lu_clamp clamp
+#define lu_mix mix
+#define lu_int(x) int(x)
+#define lu_float(x) float(x)
+#define lu_isfinite(x) (!isnan(x) && !isinf(x))
+
+vec3 lu_v3(float x, float y, float z) { return vec3(x, y, z); }
+vec3 lu_v3s(float s) { return vec3(s); }
+vec3 lu_v3_add(vec3 a, vec3 b) { return a + b; }
+vec3 lu_v3_sub(vec3 a, vec3 b) { return a - b; }
+vec3 lu_v3_mul(vec3 a, vec3 b) { return a * b; }
+vec3 lu_v3_div(vec3 a, vec3 b) { return a / b; }
+vec3 lu_v3_scale(vec3 a, float s) { return a * s; }
+vec3 lu_v3_madd(vec3 a, vec3 b, float s) { return a + b * s; }
+vec3 lu_v3_neg(vec3 a) { return -a; }
+float lu_v3_dot(vec3 a, vec3 b) { return dot(a, b); }
+vec3 lu_v3_cross(vec3 a, vec3 b) { return cross(a, b); }
+float lu_v3_len(vec3 a) { return length(a); }
+vec3 lu_v3_norm(vec3 a) { float l = length(a); return l > 0.0 ? a / l : a; }
+vec3 lu_v3_min(vec3 a, vec3 b) { return min(a, b); }
+vec3 lu_v3_max(vec3 a, vec3 b) { return max(a, b); }
+vec3 lu_v3_exp(vec3 a) { return exp(a); }
+float lu_v3_maxc(vec3 a) { return max(a.x, max(a.y, a.z)); }
+float lu_v3_avg(vec3 a) { return (a.x + a.y + a.z) * (1.0 / 3.0); }
+float lu_v3_get(vec3 a, int i) { return a[i]; }
+
+#else
+/* ------------------------------------------------------------------- C */
+#include <lucent/math.h>
+#include <math.h>
+#include <stdbool.h>
+
+#define LU_C 1
+#define LU_FN static inline
+#define LU_INOUT(T) T *
+#define LU_OUT(T) T *
+#define LU_REF(x) (&(x))
+#define LU_DEREF(x) (*(x))
+#define LU_TYPEDEF(name) typedef struct name name;
+#define LU_CONST static const
+#define lu_exp expf
+#define lu_log logf
+#define lu_sqrt sqrtf
+#define lu_pow powf
+#define lu_abs fabsf
+#define lu_floor floorf
+#define lu_ceil ceilf
+#define lu_min fminf
+#define lu_max fmaxf
+#define lu_sin sinf
+#define lu_cos cosf
+#define lu_acos acosf
+#define lu_atan2 atan2f
+#define lu_int(x) ((int)(x))
+#define lu_float(x) ((float)(x))
+#define lu_isfinite(x) isfinite(x)
+typedef lu_vec3 vec3;
+typedef unsigned int uint;
+static inline float lu_clamp(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
+static inline float lu_mix(float a, float b, float t) { return a + (b - a) * t; }
+#endif
+
+/* ------------------------------------------------------------ shared */
+LU_CONST float LU_K_PI = 3.14159265358979323846f;
+LU_CONST float LU_K_INV_PI = 0.318309886183790671538f;
+LU_CONST float LU_K_INV_4PI = 0.0795774715459476679f;
+
+LU_FN float lu_smoothstep(float e0, float e1, float x) {
+    float t = lu_clamp((x - e0) / (e1 - e0), 0.0f, 1.0f);
+    return t * t * (3.0f - 2.0f * t);
+}
+
+#endif

@@ -1,0 +1,83 @@
+/* Minimal test harness: checks report file:line and the values involved,
+ * count failures, and the test program exits non-zero if any failed. */
+#ifndef LU_TEST_H
+#define LU_TEST_H
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+static int lu_test_failures = 0;
+static int lu_test_checks = 0;
+
+#define CHECK(cond)                                                                  \
+    do {                                                                             \
+        lu_test_checks++;                                                            \
+        if (!(cond)) {                                                               \
+            lu_test_failures++;                                                      \
+            fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond); \
+        }                                                                            \
+    } while (0)
+
+#define CHECK_MSG(cond, ...)                                                  \
+    do {                                                                      \
+        lu_test_checks++;                                                     \
+        if (!(cond)) {                                                        \
+            lu_test_failures++;                                               \
+            fprintf(stderr, "%s:%d: CHECK failed: %s: ", __FILE__, __LINE__, #cond); \
+            fprintf(stderr, __VA_ARGS__);                                     \
+            fprintf(stderr, "\n");                                            \
+        }                                                                     \
+    } while (0)
+
+/* |a - b| <= tol */
+#define CHECK_NEAR(a, b, tol)                                                                      \
+    do {                                                                                           \
+        double lu_a_ = (double)(a), lu_b_ = (double)(b), lu_t_ = (double)(tol);                    \
+        lu_test_checks++;                                                                          \
+        if (!(fabs(lu_a_ - lu_b_) <= lu_t_)) {                                                     \
+            lu_test_failures++;                                                                    \
+            fprintf(stderr, "%s:%d: CHECK_NEAR failed: %s = %.9g, %s = %.9g, |diff| = %.3g > %.3g\n", \
+                    __FILE__, __LINE__, #a, lu_a_, #b, lu_b_, fabs(lu_a_ - lu_b_), lu_t_);         \
+        }                                                                                          \
+    } while (0)
+
+/* |a - b| <= rel * |b| */
+#define CHECK_REL(a, b, rel)                                                                          \
+    do {                                                                                              \
+        double lu_a_ = (double)(a), lu_b_ = (double)(b), lu_r_ = (double)(rel);                       \
+        lu_test_checks++;                                                                             \
+        if (!(fabs(lu_a_ - lu_b_) <= lu_r_ * fabs(lu_b_))) {                                          \
+            lu_test_failures++;                                                                       \
+            fprintf(stderr, "%s:%d: CHECK_REL failed: %s = %.9g, %s = %.9g, rel diff = %.3g > %.3g\n", \
+                    __FILE__, __LINE__, #a, lu_a_, #b, lu_b_, fabs(lu_a_ - lu_b_) / fabs(lu_b_), lu_r_); \
+        }                                                                                             \
+    } while (0)
+
+/* A call returning lu_result must succeed; prints the error message if not. */
+#define CHECK_OK(call, errp)                                                                        \
+    do {                                                                                            \
+        lu_test_checks++;                                                                           \
+        lu_result lu_r_ = (call);                                                                   \
+        if (lu_r_ != LU_OK) {                                                                       \
+            lu_test_failures++;                                                                     \
+            fprintf(stderr, "%s:%d: %s failed: %s: %s\n", __FILE__, __LINE__, #call,                \
+                    lu_result_name(lu_r_), (errp)->message);                                        \
+        }                                                                                           \
+    } while (0)
+
+#define RUN_TEST(fn)                                   \
+    do {                                               \
+        int lu_before_ = lu_test_failures;             \
+        fn();                                          \
+        fprintf(stderr, "%-48s %s\n", #fn,             \
+                lu_test_failures == lu_before_ ? "ok" : "FAILED"); \
+    } while (0)
+
+#define TEST_EXIT()                                                                        \
+    do {                                                                                   \
+        fprintf(stderr, "%d checks, %d failed\n", lu_test_checks, lu_test_failures);       \
+        return lu_test_failures ? EXIT_FAILURE : (lu_test_checks ? EXIT_SUCCESS : EXIT_FAILURE); \
+    } while (0)
+
+#endif

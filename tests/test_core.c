@@ -1,0 +1,149 @@
+/* Core: settings parsing, affine maps, boxes, atomic files, parallel loop. */
+#include <lucent/lucent.h>
+
+#include <stdatomic.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "lu_test.h"
+
+static void test_kv_parse(void) {
+    lu_kvlist kv = {0};
+    lu_error err = {0};
+    CHECK_OK(lu_kv_parse_assignment(&kv, "afm.coeffs=16", &err), &err);
+    CHECK_OK(lu_kv_parse_assignment(&kv, "pos=1,2.5,-3", &err), &err);
+    CHECK_OK(lu_kv_parse_assignment(&kv, "bssrdf.profile=multipole", &err), &err);
+    CHECK_OK(lu_kv_parse_assignment(&kv, "afm.coeffs=8", &err), &err); /* overrides */
+    CHECK(kv.count == 3);
+    const lu_kv *c = lu_kv_find(&kv, "afm.coeffs");
+    CHECK(c && c->count == 1 && c->v[0] == 8.0);
+    const lu_kv *p = lu_kv_find(&kv, "pos");
+    CHECK(p && p->count == 3 && p->v[1] == 2.5 && p->v[2] == -3.0);
+    const lu_kv *s = lu_kv_find(&kv, "bssrdf.profile");
+    CHECK(s && s->count == 0 && strcmp(s->str, "multipole") == 0);
+    CHECK(lu_kv_parse_assignment(&kv, "novalue", &err) == LU_ERR_INVALID_ARG);
+    CHECK(lu_kv_parse_assignment(&kv, "x=", &err) == LU_ERR_INVALID_ARG);
+    CHECK(lu_kv_parse_assignment(&kv, "x=nan", &err) == LU_ERR_NONFINITE);
+    /* "1,2," is not a number list: kept as a string */
+    CHECK_OK(lu_kv_parse_assignment(&kv, "y=1,2,", &err), &err);
+    CHECK(lu_kv_find(&kv, "y")->count == 0);
+    double v;
+    CHECK(lu_kv_number(&kv, "afm.coeffs", 16, 1, 4, &v, "afm", &err) == LU_ERR_RANGE);
+    CHECK(strstr(err.message, "afm.coeffs") != NULL);
+    CHECK_OK(lu_kv_number(&kv, "missing", 3.5, 0, 10, &v, "afm", &err), &err);
+    CHECK(v == 3.5);
+    const char *known[] = {"afm.coeffs", "pos", NULL};
+    CHECK(lu_kv_check_known(&kv, known, "$.x", &err) == LU_ERR_SCENE);
+    CHECK(strstr(err.message, "bssrdf.profile") != NULL);
+    lu_kv_free(&kv);
+}
+
+static void test_affine(void) {
+    lu_affine t = lu_affine_translate(lu_v3(1, 2, 3));
+    lu_affine r = lu_affine_rotate_xyz_deg(lu_v3(30, 45, 60));
+    lu_affine s = lu_affine_scale(lu_v3(2, 3, 4));
+    lu_affine rs = lu_affine_mul(&r, &s);
+    lu_affine m = lu_affine_mul(&t, &rs);
+    lu_affine inv;
+    CHECK(lu_affine_invert(&m, &inv));
+    lu_vec3 p = lu_v3(0.3f, -1.2f, 2.0f);
+    lu_vec3 q = lu_affine_point(&inv, lu_affine_point(&m, p));
+    CHECK_NEAR(q.x, p.x, 1e-5);
+    CHECK_NEAR(q.y, p.y, 1e-5);
+    CHECK_NEAR(q.z, p.z, 1e-5);
+    /* Rotation about Z by 90 degrees takes X to Y. */
+    lu_affine rz = lu_affine_rotate_xyz_deg(lu_v3(0, 0, 90));
+    lu_vec3 y = lu_affine_vector(&rz, lu_v3(1, 0, 0));
+    CHECK_NEAR(y.x, 0, 1e-6);
+    CHECK_NEAR(y.y, 1, 1e-6);
+    /* Normals stay perpendicular to transformed tangents under non-uniform scale. */
+    lu_vec3 n = lu_v3_norm(lu_v3(1, 1, 0)), tan = lu_v3(1, -1, 0);
+    lu_vec3 n2 = lu_affine_normal(&m, n), t2 = lu_affine_vector(&m, tan);
+    CHECK_NEAR(lu_v3_dot(n2, t2), 0, 1e-4);
+    lu_affine sing = lu_affine_scale(lu_v3(1, 0, 1));
+    CHECK(!lu_affine_invert(&sing, &inv));
+}
+
+static void test_aabb_ray(void) {
+    lu_aabb b = {{-1, -1, -1}, {1, 1, 1}};
+    float t0, t1;
+    CHECK(lu_aabb_ray(b, lu_v3(0, 0, -5), lu_v3(0, 0, 1), 0, 100, &t0, &t1));
+    CHECK_NEAR(t0, 4, 1e-6);
+    CHECK_NEAR(t1, 6, 1e-6);
+    CHECK(!lu_aabb_ray(b, lu_v3(0, 2, -5), lu_v3(0, 0, 1), 0, 100, &t0, &t1));
+    CHECK(lu_aabb_ray(b, lu_v3(0, 0, 0), lu_v3(1, 0, 0), 0, 0.5f, &t0, &t1));
+    CHECK_NEAR(t1, 0.5, 1e-7);
+}
+
+static void test_atomic_file(void) {
+    lu_error err = {0};
+    const char *path = "test_core_atomic.txt";
+    remove(path);
+    lu_atomic_file f;
+    CHECK_OK(lu_atomic_open(&f, path, &err), &err);
+    fputs("partial", (FILE *)f.fp);
+    CHECK(access(path, F_OK) != 0); /* nothing under the final name yet */
+    lu_atomic_abort(&f);
+    CHECK(access(path, F_OK) != 0);
+    CHECK(access(f.temp_path, F_OK) != 0);
+    CHECK_OK(lu_atomic_open(&f, path, &err), &err);
+    fputs("hello", (FILE *)f.fp);
+    CHECK_OK(lu_atomic_commit(&f, &err), &err);
+    char *data;
+    size_t size;
+    CHECK_OK(lu_read_file(path, 100, &data, &size, &err), &err);
+    CHECK(size == 5 && strcmp(data, "hello") == 0);
+    free(data);
+    CHECK(lu_read_file(path, 3, &data, &size, &err) == LU_ERR_LIMIT);
+    CHECK(lu_read_file("no/such/file", 100, &data, &size, &err) == LU_ERR_IO);
+    CHECK(strstr(err.message, "no/such/file") != NULL);
+    remove(path);
+    CHECK(lu_atomic_open(&f, "no/such/dir/x.png", &err) == LU_ERR_IO);
+}
+
+static void test_paths(void) {
+    char out[256];
+    lu_path_resolve("scenes/a.json", "grid.nvdb", out, sizeof out);
+    CHECK(strcmp(out, "scenes/grid.nvdb") == 0);
+    lu_path_resolve("a.json", "grid.nvdb", out, sizeof out);
+    CHECK(strcmp(out, "grid.nvdb") == 0);
+    lu_path_resolve("scenes/a.json", "/abs/g.nvdb", out, sizeof out);
+    CHECK(strcmp(out, "/abs/g.nvdb") == 0);
+    CHECK(strcmp(lu_path_ext("x/y.PLY"), "ply") == 0);
+    CHECK(strcmp(lu_path_ext("x.y/z"), "") == 0);
+    CHECK(lu_path_has_suffix("dragon.ply.GZ", ".ply.gz"));
+}
+
+typedef struct sum_ctx {
+    int64_t *out;
+    atomic_int calls;
+} sum_ctx;
+
+static void square_range(void *ctx, int64_t b, int64_t e, int thread) {
+    sum_ctx *c = ctx;
+    for (int64_t i = b; i < e; i++) c->out[i] += i * i;
+    atomic_fetch_add(&c->calls, 1);
+}
+
+static void test_parallel_for(void) {
+    enum { N = 100003 };
+    int64_t *out = calloc(N, sizeof *out);
+    sum_ctx c = {.out = out};
+    atomic_init(&c.calls, 0);
+    lu_parallel_for(N, 97, square_range, &c, NULL);
+    int bad = 0;
+    for (int64_t i = 0; i < N; i++) bad += out[i] != i * i; /* each index exactly once */
+    CHECK(bad == 0);
+    CHECK(atomic_load(&c.calls) == (N + 96) / 97);
+    free(out);
+}
+
+int main(void) {
+    RUN_TEST(test_kv_parse);
+    RUN_TEST(test_affine);
+    RUN_TEST(test_aabb_ray);
+    RUN_TEST(test_atomic_file);
+    RUN_TEST(test_paths);
+    RUN_TEST(test_parallel_for);
+    TEST_EXIT();
+}
