@@ -1,3 +1,110 @@
-#include <lucent/lucent.h>
+/* lucent — one binary, git-style subcommands. */
+#include <stdarg.h>
 #include <stdio.h>
-int main(void) { puts("lucent " LU_VERSION_STRING); return 0; }
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+
+static const char k_usage[] =
+    "usage: lucent <command> [options]\n"
+    "\n"
+    "commands:\n"
+    "  render SCENE.json --method M -o OUT.{png,exr,pfm}   render a scene\n"
+    "  compare A B [-o diff.png]                            error metrics of A against reference B\n"
+    "  bench SCENE.json --methods a,b,...                   time methods, error against the reference\n"
+    "  info FILE                                            summarise a scene, mesh, grid or image\n"
+    "  methods                                              list methods and their parameters\n"
+    "\n"
+    "Every command takes --help. Exit codes: 0 success, 1 failure (bad input, failed\n"
+    "render; one line on stderr says why), 2 usage error, 3 a --max-* threshold exceeded.\n";
+
+int lu_cli_error(const char *cmd, const lu_error *err) {
+    fprintf(stderr, "lucent %s: error: %s\n", cmd, err->message);
+    return LU_EXIT_FAIL;
+}
+
+int lu_cli_usage(const char *cmd, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "lucent %s: ", cmd);
+    vfprintf(stderr, fmt, ap);
+    fprintf(stderr, " (see lucent %s --help)\n", cmd);
+    va_end(ap);
+    return LU_EXIT_USAGE;
+}
+
+bool lu_cli_is_help(const char *arg) { return strcmp(arg, "--help") == 0 || strcmp(arg, "-h") == 0; }
+
+bool lu_cli_parse_size(const char *s, int *w, int *h) {
+    char tail;
+    return sscanf(s, "%dx%d%c", w, h, &tail) == 2 && *w >= 1 && *h >= 1 && *w <= LU_MAX_IMAGE_DIM &&
+           *h <= LU_MAX_IMAGE_DIM;
+}
+
+bool lu_cli_parse_backend(const char *s, lu_backend *b) {
+    if (strcmp(s, "cpu") == 0) *b = LU_BACKEND_CPU;
+    else if (strcmp(s, "gpu") == 0) *b = LU_BACKEND_GPU;
+    else return false;
+    return true;
+}
+
+int lu_cli_load_scene(const char *cmd, const char *path, int width, int height, lu_scene *scene) {
+    lu_error err = {0};
+    if (lu_scene_load(path, scene, &err) != LU_OK) return lu_cli_error(cmd, &err);
+    if (width > 0) {
+        scene->camera.width = width;
+        scene->camera.height = height;
+    }
+    return LU_EXIT_OK;
+}
+
+void lu_cli_print_methods(FILE *out) {
+    int n;
+    const lu_method *const *all = lu_methods(&n);
+    for (int i = 0; i < n; i++) {
+        const lu_method *m = all[i];
+        fprintf(out, "%s [%s%s%s]\n  %s\n", m->name, (m->backends & LU_BACKEND_CPU) ? "cpu" : "",
+                (m->backends & LU_BACKEND_CPU) && (m->backends & LU_BACKEND_GPU) ? "," : "",
+                (m->backends & LU_BACKEND_GPU) ? "gpu" : "", m->summary);
+        for (int j = 0; j < m->param_count; j++) {
+            const lu_param_desc *p = &m->params[j];
+            if (p->type == LU_PARAM_CHOICE)
+                fprintf(out, "    %s.%s = %s (default choice %d) — %s\n", m->name, p->name, p->choices, (int)p->def,
+                        p->help);
+            else
+                fprintf(out, "    %s.%s = %g in [%g, %g] — %s\n", m->name, p->name, p->def, p->lo, p->hi, p->help);
+        }
+    }
+}
+
+int lu_cmd_methods(int argc, char **argv) {
+    if (argc > 1 && lu_cli_is_help(argv[1])) {
+        printf("usage: lucent methods\n\nLists every method, the backends it runs on, and its parameters\n"
+               "(set them with --set method.param=value on render and bench).\n");
+        return LU_EXIT_OK;
+    }
+    if (argc > 1) return lu_cli_usage("methods", "unexpected argument \"%s\"", argv[1]);
+    lu_cli_print_methods(stdout);
+    return LU_EXIT_OK;
+}
+
+int main(int argc, char **argv) {
+    if (argc < 2 || lu_cli_is_help(argv[1])) {
+        fputs(k_usage, argc < 2 ? stderr : stdout);
+        return argc < 2 ? LU_EXIT_USAGE : LU_EXIT_OK;
+    }
+    if (strcmp(argv[1], "--version") == 0) {
+        printf("lucent %s\n", LU_VERSION_STRING);
+        return LU_EXIT_OK;
+    }
+    static const struct {
+        const char *name;
+        int (*fn)(int, char **);
+    } cmds[] = {{"render", lu_cmd_render}, {"compare", lu_cmd_compare}, {"bench", lu_cmd_bench},
+                {"info", lu_cmd_info},     {"methods", lu_cmd_methods}};
+    for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++)
+        if (strcmp(argv[1], cmds[i].name) == 0) return cmds[i].fn(argc - 1, argv + 1);
+    fprintf(stderr, "lucent: unknown command \"%s\"\n\n%s", argv[1], k_usage);
+    return LU_EXIT_USAGE;
+}

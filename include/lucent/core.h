@@ -129,7 +129,10 @@ void lu_progress_end(lu_progress *p);
 /* ---- time and memory -------------------------------------------------- */
 
 double lu_time_seconds(void);         /* monotonic clock */
-size_t lu_peak_rss_bytes(void);       /* peak resident set of this process */
+size_t lu_peak_rss_bytes(void);       /* peak resident set of this process (since the last reset) */
+/* Restarts peak-RSS accounting (Linux: /proc/self/clear_refs), so a bench can
+ * report each method's own peak. Returns false where unsupported. */
+bool lu_peak_rss_reset(void);
 
 /* ---- small file helpers ------------------------------------------------
  * Outputs are written to "<path>.tmp.<pid>" and renamed into place, so a

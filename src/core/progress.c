@@ -15,9 +15,26 @@ double lu_time_seconds(void) {
 }
 
 size_t lu_peak_rss_bytes(void) {
+    /* VmHWM honours clear_refs resets; getrusage's ru_maxrss does not. */
+    FILE *f = fopen("/proc/self/status", "r");
+    if (f) {
+        char line[256];
+        unsigned long kb = 0;
+        while (fgets(line, sizeof line, f))
+            if (sscanf(line, "VmHWM: %lu kB", &kb) == 1) break;
+        fclose(f);
+        if (kb) return (size_t)kb * 1024u;
+    }
     struct rusage ru;
     if (getrusage(RUSAGE_SELF, &ru) != 0) return 0;
     return (size_t)ru.ru_maxrss * 1024u;
+}
+
+bool lu_peak_rss_reset(void) {
+    FILE *f = fopen("/proc/self/clear_refs", "w");
+    if (!f) return false;
+    bool ok = fputs("5", f) >= 0;
+    return fclose(f) == 0 && ok;
 }
 
 static bool quiet(void) {

@@ -1,7 +1,7 @@
 /* lu_kernel.h — the common subset of C11 and GLSL 4.50 that kernel headers
  * are written in (the way PNanoVDB.h is one file for both).
  *
- * Rules for kernel headers (src/kernels/*.h):
+ * Rules for kernel headers (src/kernels/ (*.h)):
  *   - include this file first; guard with #ifndef/#define (GLSL has them);
  *   - functions are declared `LU_FN float f(...)`; no pointers: use
  *     LU_INOUT(T)/LU_OUT(T) parameters, pass with LU_REF(x), read with LU_DEREF(x);
@@ -100,10 +100,26 @@ static inline float lu_clamp(float x, float lo, float hi) { return x < lo ? lo :
 static inline float lu_mix(float a, float b, float t) { return a + (b - a) * t; }
 #endif
 
+/* Kernels that read media take the backend's context as first parameter:
+ *   LU_FN float f(LU_CTX_PARAM, ...) { ... lu_k_density(LU_CTX, medium, p_index) ... }
+ * Before including such a kernel, the backend defines
+ *   float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index)
+ * (C: trilinear lu_grid_sample over a context struct; GLSL: textureLod on a
+ * sampler3D, where the context parameter is an unused int). */
+#ifdef LU_GLSL
+#define LU_CTX_PARAM int lu_ctx_
+#define LU_CTX lu_ctx_
+#else
+struct lu_k_ctx;
+#define LU_CTX_PARAM const struct lu_k_ctx *lu_ctx_
+#define LU_CTX lu_ctx_
+#endif
+
 /* ------------------------------------------------------------ shared */
 LU_CONST float LU_K_PI = 3.14159265358979323846f;
 LU_CONST float LU_K_INV_PI = 0.318309886183790671538f;
 LU_CONST float LU_K_INV_4PI = 0.0795774715459476679f;
+LU_CONST float LU_K_FAR_MARCH = 3.0e38f;  /* "never" for a DDA axis parallel to the ray */
 
 LU_FN float lu_smoothstep(float e0, float e1, float x) {
     float t = lu_clamp((x - e0) / (e1 - e0), 0.0f, 1.0f);

@@ -1,0 +1,34 @@
+/* Shared pieces of the lucent command-line tool. */
+#ifndef LU_CLI_H
+#define LU_CLI_H
+
+#include <lucent/lucent.h>
+
+/* Exit codes (documented in `lucent --help` and the README). */
+enum { LU_EXIT_OK = 0, LU_EXIT_FAIL = 1, LU_EXIT_USAGE = 2, LU_EXIT_THRESHOLD = 3 };
+
+int lu_cmd_render(int argc, char **argv);
+int lu_cmd_compare(int argc, char **argv);
+int lu_cmd_info(int argc, char **argv);
+int lu_cmd_bench(int argc, char **argv);
+int lu_cmd_methods(int argc, char **argv);
+
+/* One line on stderr: "lucent <cmd>: error: <message>"; returns LU_EXIT_FAIL. */
+int lu_cli_error(const char *cmd, const lu_error *err);
+/* Usage error: prints the message and a pointer to --help; returns LU_EXIT_USAGE. */
+int lu_cli_usage(const char *cmd, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+bool lu_cli_is_help(const char *arg);
+/* Parses "WxH". */
+bool lu_cli_parse_size(const char *s, int *w, int *h);
+/* Parses "cpu" / "gpu". */
+bool lu_cli_parse_backend(const char *s, lu_backend *b);
+/* Loads a scene and applies --size overrides. */
+int lu_cli_load_scene(const char *cmd, const char *path, int width, int height, lu_scene *scene);
+/* Lists every method, its backends and parameters (for --help texts). */
+void lu_cli_print_methods(FILE *out);
+
+#endif

@@ -1,0 +1,93 @@
+/* lucent render SCENE.json --method M [--set k=v ...] -o OUT */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+
+static void usage(void) {
+    printf("usage: lucent render SCENE.json [options] -o OUT.{png,exr,pfm}\n"
+           "\n"
+           "options:\n"
+           "  --method M          rendering method (default: reference; see `lucent methods`)\n"
+           "  --backend cpu|gpu   where it runs (default: cpu)\n"
+           "  --set M.P=V         set parameter P of method M (repeatable), e.g. --set reference.spp=4\n"
+           "  --size WxH          override the camera's image size\n"
+           "  --exposure E        PNG only: scale by 2^E before the sRGB curve (default 0)\n"
+           "  --half              EXR only: store half floats\n"
+           "  -o, --output FILE   output image; the format follows the extension\n"
+           "\n"
+           "Prints prepare and render times on stderr. The file is written under a\n"
+           "temporary name and renamed, so a failed render leaves no partial file.\n");
+}
+
+int lu_cmd_render(int argc, char **argv) {
+    const char *scene_path = NULL, *out_path = NULL, *method = "reference";
+    lu_backend backend = LU_BACKEND_CPU;
+    lu_kvlist settings = {0};
+    lu_image_save_desc save = {0};
+    int width = 0, height = 0;
+    lu_error err = {0};
+    int rc = LU_EXIT_OK;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        bool has_next = i + 1 < argc;
+        if (lu_cli_is_help(a)) {
+            usage();
+            lu_kv_free(&settings);
+            return LU_EXIT_OK;
+        } else if (strcmp(a, "--method") == 0 && has_next) {
+            method = argv[++i];
+        } else if (strcmp(a, "--backend") == 0 && has_next) {
+            if (!lu_cli_parse_backend(argv[++i], &backend)) rc = lu_cli_usage("render", "--backend takes cpu or gpu");
+        } else if (strcmp(a, "--set") == 0 && has_next) {
+            if (lu_kv_parse_assignment(&settings, argv[++i], &err) != LU_OK) rc = lu_cli_error("render", &err);
+        } else if (strcmp(a, "--size") == 0 && has_next) {
+            if (!lu_cli_parse_size(argv[++i], &width, &height)) rc = lu_cli_usage("render", "--size takes WxH");
+        } else if (strcmp(a, "--exposure") == 0 && has_next) {
+            char *end;
+            save.exposure = strtof(argv[++i], &end);
+            if (*end) rc = lu_cli_usage("render", "--exposure takes a number");
+        } else if (strcmp(a, "--half") == 0) {
+            save.exr_half = true;
+        } else if ((strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) && has_next) {
+            out_path = argv[++i];
+        } else if (a[0] == '-') {
+            rc = lu_cli_usage("render", "unknown or incomplete option \"%s\"", a);
+        } else if (!scene_path) {
+            scene_path = a;
+        } else {
+            rc = lu_cli_usage("render", "unexpected argument \"%s\"", a);
+        }
+        if (rc != LU_EXIT_OK) break;
+    }
+    if (rc == LU_EXIT_OK && !scene_path) rc = lu_cli_usage("render", "missing SCENE.json");
+    if (rc == LU_EXIT_OK && !out_path) rc = lu_cli_usage("render", "missing -o OUT");
+    if (rc == LU_EXIT_OK && lu_image_format_from_path(out_path) == LU_IMAGE_AUTO)
+        rc = lu_cli_usage("render", "cannot tell the image format of \"%s\" (use .png, .exr or .pfm)", out_path);
+    if (rc != LU_EXIT_OK) {
+        lu_kv_free(&settings);
+        return rc;
+    }
+
+    lu_scene scene;
+    rc = lu_cli_load_scene("render", scene_path, width, height, &scene);
+    if (rc != LU_EXIT_OK) {
+        lu_kv_free(&settings);
+        return rc;
+    }
+    lu_renderer *r = NULL;
+    lu_image img = {0};
+    if (lu_renderer_create(method, &scene, &settings, backend, &r, &err) != LU_OK ||
+        lu_renderer_render(r, &scene, &img, &err) != LU_OK || lu_image_save(&img, out_path, &save, &err) != LU_OK) {
+        rc = lu_cli_error("render", &err);
+    } else {
+        fprintf(stderr, "lucent render: %s %dx%d with %s on %s: prepare %.1f ms, render %.1f ms\n", out_path, img.width,
+                img.height, method, lu_backend_name(backend), r->prepare_ms, r->last_render_ms);
+    }
+    lu_renderer_destroy(r);
+    lu_image_destroy(&img);
+    lu_scene_destroy(&scene);
+    lu_kv_free(&settings);
+    return rc;
+}

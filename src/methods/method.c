@@ -1,0 +1,163 @@
+/* The method registry, parameter resolution and the renderer wrapper that
+ * times prepare and render. */
+#include <lucent/lucent.h>
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "methods/methods.h"
+
+static const lu_method *const k_methods[] = {
+    &lu_method_reference,
+};
+
+const lu_method *const *lu_methods(int *count) {
+    *count = (int)(sizeof k_methods / sizeof k_methods[0]);
+    return k_methods;
+}
+
+const lu_method *lu_method_find(const char *name) {
+    int n;
+    const lu_method *const *all = lu_methods(&n);
+    for (int i = 0; i < n; i++)
+        if (strcmp(all[i]->name, name) == 0) return all[i];
+    return NULL;
+}
+
+const char *lu_backend_name(lu_backend b) { return b == LU_BACKEND_GPU ? "gpu" : "cpu"; }
+
+static const lu_param_desc *find_param(const lu_method *m, const char *name, int *index) {
+    for (int i = 0; i < m->param_count; i++)
+        if (strcmp(m->params[i].name, name) == 0) {
+            *index = i;
+            return &m->params[i];
+        }
+    return NULL;
+}
+
+/* Index of `value` in a "a|b|c" list, or -1. */
+static int choice_index(const char *choices, const char *value) {
+    int idx = 0;
+    size_t len = strlen(value);
+    for (const char *p = choices; p && *p; idx++) {
+        const char *bar = strchr(p, '|');
+        size_t n = bar ? (size_t)(bar - p) : strlen(p);
+        if (n == len && strncmp(p, value, n) == 0) return idx;
+        p = bar ? bar + 1 : NULL;
+    }
+    return -1;
+}
+
+static lu_result unknown_param(const lu_method *m, const char *key, lu_error *err) {
+    char names[512] = "";
+    size_t used = 0;
+    for (int i = 0; i < m->param_count && used + 1 < sizeof names; i++)
+        used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "", m->params[i].name);
+    return lu_fail(err, LU_ERR_INVALID_ARG, "setting \"%s\": method %s has no such parameter (it has: %s)", key, m->name,
+                   names[0] ? names : "none");
+}
+
+lu_result lu_settings_validate(const lu_kvlist *settings, lu_error *err) {
+    for (int i = 0; settings && i < settings->count; i++) {
+        const char *key = settings->items[i].key;
+        const char *dot = strchr(key, '.');
+        if (!dot) return lu_fail(err, LU_ERR_INVALID_ARG, "setting \"%s\" must be of the form method.parameter", key);
+        char mname[LU_KV_KEY_MAX];
+        snprintf(mname, sizeof mname, "%.*s", (int)(dot - key), key);
+        const lu_method *m = lu_method_find(mname);
+        if (!m) return lu_fail(err, LU_ERR_INVALID_ARG, "setting \"%s\": no method named \"%s\"", key, mname);
+        int idx;
+        if (!find_param(m, dot + 1, &idx)) return unknown_param(m, key, err);
+    }
+    return LU_OK;
+}
+
+lu_result lu_method_resolve_params(const lu_method *m, const lu_kvlist *settings, double *values, lu_error *err) {
+    for (int i = 0; i < m->param_count; i++) values[i] = m->params[i].def;
+    size_t prefix = strlen(m->name);
+    for (int i = 0; settings && i < settings->count; i++) {
+        const lu_kv *kv = &settings->items[i];
+        if (strncmp(kv->key, m->name, prefix) != 0 || kv->key[prefix] != '.') continue;
+        int idx;
+        const lu_param_desc *pd = find_param(m, kv->key + prefix + 1, &idx);
+        if (!pd) return unknown_param(m, kv->key, err);
+        double v;
+        if (pd->type == LU_PARAM_CHOICE) {
+            int c = kv->count == 0 ? choice_index(pd->choices, kv->str) : -1;
+            if (c < 0)
+                return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected one of %s", kv->key, pd->choices);
+            v = c;
+        } else if (pd->type == LU_PARAM_BOOL && kv->count == 0) {
+            if (strcmp(kv->str, "true") == 0 || strcmp(kv->str, "on") == 0) v = 1;
+            else if (strcmp(kv->str, "false") == 0 || strcmp(kv->str, "off") == 0) v = 0;
+            else return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected true/false or 1/0", kv->key);
+        } else {
+            if (kv->count != 1) return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected a single number", kv->key);
+            v = kv->v[0];
+            if (pd->type != LU_PARAM_FLOAT && v != (double)(long long)v)
+                return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected an integer, got %g", kv->key, v);
+            if (!(v >= pd->lo && v <= pd->hi))
+                return lu_fail(err, LU_ERR_RANGE, "setting \"%s\" = %g is outside [%g, %g]", kv->key, v, pd->lo, pd->hi);
+        }
+        values[idx] = v;
+    }
+    return LU_OK;
+}
+
+lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu_kvlist *settings, lu_backend backend,
+                             lu_renderer **out, lu_error *err) {
+    *out = NULL;
+    const lu_method *m = lu_method_find(method);
+    if (!m) {
+        int n;
+        const lu_method *const *all = lu_methods(&n);
+        char names[256] = "";
+        size_t used = 0;
+        for (int i = 0; i < n && used + 1 < sizeof names; i++)
+            used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "", all[i]->name);
+        return lu_fail(err, LU_ERR_INVALID_ARG, "no method named \"%s\" (available: %s)", method, names);
+    }
+    if (!(m->backends & backend))
+        return lu_fail(err, LU_ERR_UNSUPPORTED, "method %s does not run on the %s backend", m->name,
+                       lu_backend_name(backend));
+    lu_result r = lu_settings_validate(settings, err);
+    if (r != LU_OK) return r;
+    lu_renderer *rd = calloc(1, sizeof *rd);
+    if (!rd) return lu_fail(err, LU_ERR_NOMEM, "out of memory");
+    rd->method = m;
+    rd->backend = backend;
+    r = lu_method_resolve_params(m, settings, rd->params, err);
+    if (r == LU_OK) {
+        double t0 = lu_time_seconds();
+        r = m->prepare(scene, rd->params, backend, &rd->state, err);
+        rd->prepare_ms = 1e3 * (lu_time_seconds() - t0);
+    }
+    if (r != LU_OK) {
+        free(rd);
+        return r;
+    }
+    *out = rd;
+    return LU_OK;
+}
+
+lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err) {
+    const lu_camera *c = &scene->camera;
+    if (out->width == 0) {
+        lu_result e = lu_image_create(out, c->width, c->height, err);
+        if (e != LU_OK) return e;
+    } else if (out->width != c->width || out->height != c->height) {
+        return lu_fail(err, LU_ERR_INVALID_ARG, "output image is %dx%d but the camera is %dx%d", out->width,
+                       out->height, c->width, c->height);
+    }
+    double t0 = lu_time_seconds();
+    lu_result e = r->method->render(r->state, scene, out, err);
+    r->last_render_ms = 1e3 * (lu_time_seconds() - t0);
+    return e;
+}
+
+void lu_renderer_destroy(lu_renderer *r) {
+    if (!r) return;
+    r->method->destroy(r->state);
+    free(r);
+}

@@ -1,0 +1,688 @@
+/* Scene JSON -> lu_scene (DESIGN.md §6). Strict: an unknown key, a wrong type,
+ * a duplicate key or an out-of-range number is an error naming the JSON path,
+ * e.g. "scenes/smoke.json: $.lights[1].intensity: expected 3 numbers". */
+#include <lucent/lucent.h>
+
+#include <cjson/cJSON.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define LU_SCENE_MAX_BYTES (16u * 1024u * 1024u)
+#define LU_SCENE_MAX_ITEMS 4096
+
+typedef struct parse_ctx {
+    const char *file;   /* for messages and relative paths */
+    lu_error *err;
+} parse_ctx;
+
+/* JSON paths are built on the stack as the parser descends. */
+typedef struct jpath {
+    char s[256];
+} jpath;
+
+/* Over-long paths keep their start and end in "..." (messages stay readable). */
+static void jp_mark_truncated(jpath *r) { memcpy(r->s + sizeof r->s - 4, "...", 4); }
+
+static jpath jp_key(const jpath *p, const char *key) {
+    jpath r;
+    if (snprintf(r.s, sizeof r.s, "%s.%s", p->s, key) >= (int)sizeof r.s) jp_mark_truncated(&r);
+    return r;
+}
+
+static jpath jp_index(const jpath *p, int i) {
+    jpath r;
+    if (snprintf(r.s, sizeof r.s, "%s[%d]", p->s, i) >= (int)sizeof r.s) jp_mark_truncated(&r);
+    return r;
+}
+
+static lu_result scene_fail(parse_ctx *c, const jpath *p, lu_result code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+
+static lu_result scene_fail(parse_ctx *c, const jpath *p, lu_result code, const char *fmt, ...) {
+    char reason[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(reason, sizeof reason, fmt, ap);
+    va_end(ap);
+    return lu_fail(c->err, code, "%s: %s: %s", c->file, p->s, reason);
+}
+
+/* Rejects keys outside `known` and duplicated keys (cJSON keeps both). */
+static lu_result check_object(parse_ctx *c, const cJSON *obj, const jpath *p, const char *const *known) {
+    if (!cJSON_IsObject(obj)) return scene_fail(c, p, LU_ERR_SCENE, "expected an object");
+    for (const cJSON *it = obj->child; it; it = it->next) {
+        bool ok = false;
+        for (const char *const *k = known; *k && !ok; k++) ok = strcmp(*k, it->string) == 0;
+        if (!ok) {
+            char names[400] = "";
+            size_t used = 0;
+            for (const char *const *k = known; *k && used + 1 < sizeof names; k++)
+                used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", used ? ", " : "", *k);
+            jpath kp = jp_key(p, it->string);
+            return scene_fail(c, &kp, LU_ERR_SCENE, "unknown key (allowed here: %s)", names);
+        }
+        for (const cJSON *jt = it->next; jt; jt = jt->next)
+            if (strcmp(it->string, jt->string) == 0) {
+                jpath kp = jp_key(p, it->string);
+                return scene_fail(c, &kp, LU_ERR_SCENE, "duplicate key");
+            }
+    }
+    return LU_OK;
+}
+
+static lu_result get_number(parse_ctx *c, const cJSON *obj, const jpath *p, const char *key, double def, double lo,
+                            double hi, bool required, double *out) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
+    jpath kp = jp_key(p, key);
+    if (!v) {
+        if (required) return scene_fail(c, &kp, LU_ERR_SCENE, "missing required number");
+        *out = def;
+        return LU_OK;
+    }
+    if (!cJSON_IsNumber(v)) return scene_fail(c, &kp, LU_ERR_SCENE, "expected a number");
+    if (!isfinite(v->valuedouble)) return scene_fail(c, &kp, LU_ERR_NONFINITE, "number is not finite");
+    if (!(v->valuedouble >= lo && v->valuedouble <= hi))
+        return scene_fail(c, &kp, LU_ERR_RANGE, "%g is outside [%g, %g]", v->valuedouble, lo, hi);
+    *out = v->valuedouble;
+    return LU_OK;
+}
+
+static lu_result get_float(parse_ctx *c, const cJSON *obj, const jpath *p, const char *key, double def, double lo,
+                           double hi, bool required, float *out) {
+    double d;
+    lu_result r = get_number(c, obj, p, key, def, lo, hi, required, &d);
+    if (r == LU_OK) *out = (float)d;
+    return r;
+}
+
+static lu_result get_int(parse_ctx *c, const cJSON *obj, const jpath *p, const char *key, int def, int lo, int hi,
+                         bool required, int *out) {
+    double d;
+    lu_result r = get_number(c, obj, p, key, def, lo, hi, required, &d);
+    if (r != LU_OK) return r;
+    if (d != (double)(int)d) {
+        jpath kp = jp_key(p, key);
+        return scene_fail(c, &kp, LU_ERR_SCENE, "expected an integer, got %g", d);
+    }
+    *out = (int)d;
+    return LU_OK;
+}
+
+/* A vec3: [x, y, z]; `allow_scalar` also accepts one number for all three. */
+static lu_result get_vec3(parse_ctx *c, const cJSON *obj, const jpath *p, const char *key, lu_vec3 def, double lo,
+                          double hi, bool required, bool allow_scalar, lu_vec3 *out) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
+    jpath kp = jp_key(p, key);
+    if (!v) {
+        if (required) return scene_fail(c, &kp, LU_ERR_SCENE, "missing required [x, y, z]");
+        *out = def;
+        return LU_OK;
+    }
+    double d[3];
+    if (allow_scalar && cJSON_IsNumber(v)) {
+        d[0] = d[1] = d[2] = v->valuedouble;
+    } else {
+        if (!cJSON_IsArray(v) || cJSON_GetArraySize(v) != 3)
+            return scene_fail(c, &kp, LU_ERR_SCENE, allow_scalar ? "expected a number or 3 numbers" : "expected 3 numbers");
+        for (int i = 0; i < 3; i++) {
+            const cJSON *e = cJSON_GetArrayItem(v, i);
+            if (!cJSON_IsNumber(e)) return scene_fail(c, &kp, LU_ERR_SCENE, "element %d is not a number", i);
+            d[i] = e->valuedouble;
+        }
+    }
+    for (int i = 0; i < 3; i++) {
+        if (!isfinite(d[i])) return scene_fail(c, &kp, LU_ERR_NONFINITE, "element %d is not finite", i);
+        if (!(d[i] >= lo && d[i] <= hi))
+            return scene_fail(c, &kp, LU_ERR_RANGE, "element %d = %g is outside [%g, %g]", i, d[i], lo, hi);
+    }
+    *out = lu_v3((float)d[0], (float)d[1], (float)d[2]);
+    return LU_OK;
+}
+
+static lu_result get_string(parse_ctx *c, const cJSON *obj, const jpath *p, const char *key, bool required,
+                            const char **out) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
+    jpath kp = jp_key(p, key);
+    *out = NULL;
+    if (!v) return required ? scene_fail(c, &kp, LU_ERR_SCENE, "missing required string") : LU_OK;
+    if (!cJSON_IsString(v)) return scene_fail(c, &kp, LU_ERR_SCENE, "expected a string");
+    *out = v->valuestring;
+    return LU_OK;
+}
+
+#define TRY(x)                          \
+    do {                                \
+        lu_result try_r_ = (x);         \
+        if (try_r_ != LU_OK) return try_r_; \
+    } while (0)
+
+/* Prefixes a loader's own message with the JSON path that named the file. */
+static lu_result wrap_loader(parse_ctx *c, const jpath *p, lu_result r) {
+    if (r == LU_OK) return r;
+    char inner[sizeof c->err->message];
+    snprintf(inner, sizeof inner, "%s", c->err->message);
+    return lu_fail(c->err, r, "%s: %s: %s", c->file, p->s, inner);
+}
+
+/* Turns the parameters of a {"procedural": NAME, ...} object into settings. */
+static lu_result params_from_object(parse_ctx *c, const cJSON *obj, const jpath *p, const char *skip_key,
+                                    lu_kvlist *out) {
+    for (const cJSON *it = obj->child; it; it = it->next) {
+        if (strcmp(it->string, skip_key) == 0) continue;
+        jpath kp = jp_key(p, it->string);
+        double v[4];
+        int n = 0;
+        if (cJSON_IsNumber(it)) {
+            v[n++] = it->valuedouble;
+        } else if (cJSON_IsArray(it) && cJSON_GetArraySize(it) >= 1 && cJSON_GetArraySize(it) <= 4) {
+            for (const cJSON *e = it->child; e; e = e->next) {
+                if (!cJSON_IsNumber(e)) return scene_fail(c, &kp, LU_ERR_SCENE, "array elements must be numbers");
+                v[n++] = e->valuedouble;
+            }
+        } else if (cJSON_IsString(it)) {
+            lu_error kerr;
+            if (lu_kv_set_string(out, it->string, it->valuestring, &kerr) != LU_OK)
+                return scene_fail(c, &kp, kerr.code, "%s", kerr.message);
+            continue;
+        } else {
+            return scene_fail(c, &kp, LU_ERR_SCENE, "expected a number, 1 to 4 numbers, or a string");
+        }
+        lu_error kerr;
+        if (lu_kv_set_number(out, it->string, v, n, &kerr) != LU_OK)
+            return scene_fail(c, &kp, kerr.code, "%s", kerr.message);
+    }
+    return LU_OK;
+}
+
+/* "transform": {"translate": [..], "rotate_deg": [..], "scale": s | [sx,sy,sz]} -> T * R * S */
+static lu_result parse_transform(parse_ctx *c, const cJSON *parent, const jpath *p, lu_affine *out) {
+    *out = lu_affine_identity();
+    const cJSON *t = cJSON_GetObjectItemCaseSensitive(parent, "transform");
+    if (!t) return LU_OK;
+    jpath tp = jp_key(p, "transform");
+    static const char *const keys[] = {"translate", "rotate_deg", "scale", NULL};
+    TRY(check_object(c, t, &tp, keys));
+    lu_vec3 tr, rot, sc;
+    TRY(get_vec3(c, t, &tp, "translate", lu_v3s(0), -1e6, 1e6, false, false, &tr));
+    TRY(get_vec3(c, t, &tp, "rotate_deg", lu_v3s(0), -3600, 3600, false, false, &rot));
+    TRY(get_vec3(c, t, &tp, "scale", lu_v3s(1), 1e-6, 1e6, false, true, &sc));
+    lu_affine S = lu_affine_scale(sc), R = lu_affine_rotate_xyz_deg(rot), T = lu_affine_translate(tr);
+    lu_affine RS = lu_affine_mul(&R, &S);
+    *out = lu_affine_mul(&T, &RS);
+    return LU_OK;
+}
+
+/* "mesh": "file.ply" | {"procedural": "sphere", ...} */
+static lu_result parse_mesh_source(parse_ctx *c, const cJSON *parent, const jpath *p, const char *key, lu_mesh *out) {
+    const cJSON *m = cJSON_GetObjectItemCaseSensitive(parent, key);
+    jpath mp = jp_key(p, key);
+    if (!m) return scene_fail(c, &mp, LU_ERR_SCENE, "missing required mesh (a file name or {\"procedural\": ...})");
+    if (cJSON_IsString(m)) {
+        char path[1024];
+        lu_path_resolve(c->file, m->valuestring, path, sizeof path);
+        return wrap_loader(c, &mp, lu_mesh_load(path, out, c->err));
+    }
+    if (!cJSON_IsObject(m)) return scene_fail(c, &mp, LU_ERR_SCENE, "expected a file name or an object");
+    const char *name;
+    TRY(get_string(c, m, &mp, "procedural", true, &name));
+    lu_kvlist params = {0};
+    lu_result r = params_from_object(c, m, &mp, "procedural", &params);
+    if (r == LU_OK) {
+        char where[300];
+        snprintf(where, sizeof where, "%s: %s", c->file, mp.s);
+        r = lu_mesh_procedural(name, &params, out, where, c->err);
+    }
+    lu_kv_free(&params);
+    return r;
+}
+
+static lu_result parse_material(parse_ctx *c, const cJSON *parent, const jpath *p, const char *key,
+                                lu_material *out) {
+    memset(out, 0, sizeof *out);
+    out->type = LU_MATERIAL_DIFFUSE;
+    out->albedo = lu_v3s(0.8f);
+    out->specular = lu_v3s(0.0f);
+    out->shininess = 32.0f;
+    out->eta = 1.3f;
+    out->mm_per_unit = 1.0f;
+    const cJSON *m = cJSON_GetObjectItemCaseSensitive(parent, key);
+    if (!m) return LU_OK;
+    jpath mp = jp_key(p, key);
+    static const char *const keys[] = {"type", "albedo", "specular", "shininess", "preset", "sigma_s", "sigma_a",
+                                       "eta", "g", "mm_per_unit", NULL};
+    TRY(check_object(c, m, &mp, keys));
+    const char *type;
+    TRY(get_string(c, m, &mp, "type", false, &type));
+    if (!type || strcmp(type, "diffuse") == 0) {
+        static const char *const diffuse_keys[] = {"type", "albedo", "specular", "shininess", NULL};
+        TRY(check_object(c, m, &mp, diffuse_keys));
+        TRY(get_vec3(c, m, &mp, "albedo", out->albedo, 0, 1, false, true, &out->albedo));
+        TRY(get_vec3(c, m, &mp, "specular", out->specular, 0, 1, false, true, &out->specular));
+        TRY(get_float(c, m, &mp, "shininess", out->shininess, 1, 1e5, false, &out->shininess));
+        return LU_OK;
+    }
+    if (strcmp(type, "translucent") != 0) {
+        jpath tp = jp_key(&mp, "type");
+        return scene_fail(c, &tp, LU_ERR_SCENE, "unknown material type \"%s\" (diffuse, translucent)", type);
+    }
+    static const char *const tkeys[] = {"type", "preset", "sigma_s", "sigma_a", "eta", "g", "mm_per_unit",
+                                        "specular", "shininess", NULL};
+    TRY(check_object(c, m, &mp, tkeys));
+    out->type = LU_MATERIAL_TRANSLUCENT;
+    out->albedo = lu_v3s(0.0f);
+    const char *preset;
+    TRY(get_string(c, m, &mp, "preset", false, &preset));
+    lu_vec3 ss = lu_v3s(1.0f), sa = lu_v3s(0.01f);
+    if (preset) {
+        const lu_material_preset *mpre = lu_material_preset_find(preset);
+        if (!mpre) {
+            jpath pp = jp_key(&mp, "preset");
+            char names[400] = "";
+            int n;
+            const lu_material_preset *all = lu_material_presets(&n);
+            size_t used = 0;
+            for (int i = 0; i < n && used + 1 < sizeof names; i++)
+                used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "", all[i].name);
+            return scene_fail(c, &pp, LU_ERR_SCENE, "unknown preset \"%s\" (known: %s)", preset, names);
+        }
+        snprintf(out->preset, sizeof out->preset, "%s", mpre->name);
+        ss = lu_v3(mpre->sigma_s_prime[0], mpre->sigma_s_prime[1], mpre->sigma_s_prime[2]);
+        sa = lu_v3(mpre->sigma_a[0], mpre->sigma_a[1], mpre->sigma_a[2]);
+        out->eta = mpre->eta;
+    } else if (!cJSON_HasObjectItem(m, "sigma_s") || !cJSON_HasObjectItem(m, "sigma_a")) {
+        return scene_fail(c, &mp, LU_ERR_SCENE, "a translucent material needs \"preset\" or both \"sigma_s\" and \"sigma_a\"");
+    }
+    /* Explicit coefficients override the preset; both are per millimetre. */
+    TRY(get_vec3(c, m, &mp, "sigma_s", ss, 0, 1e6, false, true, &ss));
+    TRY(get_vec3(c, m, &mp, "sigma_a", sa, 0, 1e6, false, true, &sa));
+    TRY(get_float(c, m, &mp, "eta", out->eta, 1.0, 4.0, false, &out->eta));
+    TRY(get_float(c, m, &mp, "g", 0.0, -0.99, 0.99, false, &out->g));
+    TRY(get_float(c, m, &mp, "mm_per_unit", 1.0, 1e-6, 1e6, false, &out->mm_per_unit));
+    TRY(get_vec3(c, m, &mp, "specular", lu_v3s(1.0f), 0, 1, false, true, &out->specular));
+    TRY(get_float(c, m, &mp, "shininess", 64.0, 1, 1e5, false, &out->shininess));
+    out->sigma_s = lu_v3_scale(ss, out->mm_per_unit);
+    out->sigma_a = lu_v3_scale(sa, out->mm_per_unit);
+    return LU_OK;
+}
+
+static lu_result parse_camera(parse_ctx *c, const cJSON *root, lu_camera *cam) {
+    jpath p = {"$.camera"};
+    const cJSON *o = cJSON_GetObjectItemCaseSensitive(root, "camera");
+    if (!o) return scene_fail(c, &p, LU_ERR_SCENE, "missing required object");
+    static const char *const keys[] = {"position", "look_at", "up", "fov_y_deg", "width", "height", NULL};
+    TRY(check_object(c, o, &p, keys));
+    TRY(get_vec3(c, o, &p, "position", lu_v3s(0), -1e6, 1e6, true, false, &cam->position));
+    TRY(get_vec3(c, o, &p, "look_at", lu_v3s(0), -1e6, 1e6, true, false, &cam->look_at));
+    TRY(get_vec3(c, o, &p, "up", lu_v3(0, 1, 0), -1e6, 1e6, false, false, &cam->up));
+    TRY(get_float(c, o, &p, "fov_y_deg", 45.0, 0.01, 179.0, false, &cam->fov_y_deg));
+    TRY(get_int(c, o, &p, "width", 512, 1, LU_MAX_IMAGE_DIM, false, &cam->width));
+    TRY(get_int(c, o, &p, "height", 512, 1, LU_MAX_IMAGE_DIM, false, &cam->height));
+    lu_vec3 fwd = lu_v3_sub(cam->look_at, cam->position);
+    if (lu_v3_len(fwd) <= 0.0f) return scene_fail(c, &p, LU_ERR_SCENE, "position and look_at coincide");
+    if (lu_v3_len(lu_v3_cross(lu_v3_norm(fwd), lu_v3_norm(cam->up))) < 1e-6f)
+        return scene_fail(c, &p, LU_ERR_SCENE, "up is parallel to the view direction");
+    return LU_OK;
+}
+
+static lu_result parse_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_light *l) {
+    memset(l, 0, sizeof *l);
+    const char *type;
+    if (!cJSON_IsObject(o)) return scene_fail(c, p, LU_ERR_SCENE, "expected an object");
+    TRY(get_string(c, o, p, "type", true, &type));
+    if (strcmp(type, "point") == 0) {
+        static const char *const keys[] = {"type", "position", "intensity", NULL};
+        TRY(check_object(c, o, p, keys));
+        l->type = LU_LIGHT_POINT;
+        TRY(get_vec3(c, o, p, "position", lu_v3s(0), -1e6, 1e6, true, false, &l->position));
+        TRY(get_vec3(c, o, p, "intensity", lu_v3s(0), 0, 1e9, true, true, &l->intensity));
+    } else if (strcmp(type, "spot") == 0) {
+        static const char *const keys[] = {"type", "position", "direction", "intensity", "inner_deg", "outer_deg", NULL};
+        TRY(check_object(c, o, p, keys));
+        l->type = LU_LIGHT_SPOT;
+        TRY(get_vec3(c, o, p, "position", lu_v3s(0), -1e6, 1e6, true, false, &l->position));
+        TRY(get_vec3(c, o, p, "direction", lu_v3s(0), -1e6, 1e6, true, false, &l->direction));
+        TRY(get_vec3(c, o, p, "intensity", lu_v3s(0), 0, 1e9, true, true, &l->intensity));
+        TRY(get_float(c, o, p, "inner_deg", 20.0, 0.0, 89.9, false, &l->inner_deg));
+        TRY(get_float(c, o, p, "outer_deg", 25.0, 0.01, 89.9, false, &l->outer_deg));
+        if (l->inner_deg > l->outer_deg) {
+            jpath ip = jp_key(p, "inner_deg");
+            return scene_fail(c, &ip, LU_ERR_RANGE, "inner_deg %g exceeds outer_deg %g", l->inner_deg, l->outer_deg);
+        }
+    } else if (strcmp(type, "directional") == 0) {
+        static const char *const keys[] = {"type", "direction", "irradiance", NULL};
+        TRY(check_object(c, o, p, keys));
+        l->type = LU_LIGHT_DIRECTIONAL;
+        TRY(get_vec3(c, o, p, "direction", lu_v3s(0), -1e6, 1e6, true, false, &l->direction));
+        TRY(get_vec3(c, o, p, "irradiance", lu_v3s(0), 0, 1e9, true, true, &l->intensity));
+    } else if (strcmp(type, "environment") == 0) {
+        static const char *const keys[] = {"type", "file", "radiance", "scale", NULL};
+        TRY(check_object(c, o, p, keys));
+        l->type = LU_LIGHT_ENVIRONMENT;
+        const char *file;
+        TRY(get_string(c, o, p, "file", false, &file));
+        TRY(get_float(c, o, p, "scale", 1.0, 0.0, 1e9, false, &l->env_scale));
+        if (file && cJSON_HasObjectItem(o, "radiance"))
+            return scene_fail(c, p, LU_ERR_SCENE, "give either \"file\" or \"radiance\", not both");
+        if (file) {
+            char path[1024];
+            lu_path_resolve(c->file, file, path, sizeof path);
+            jpath fp = jp_key(p, "file");
+            TRY(wrap_loader(c, &fp, lu_image_load(path, &l->env, c->err)));
+        } else {
+            /* A constant environment is a 1x1 map. */
+            lu_vec3 rad;
+            TRY(get_vec3(c, o, p, "radiance", lu_v3s(0), 0, 1e9, true, true, &rad));
+            TRY(wrap_loader(c, p, lu_image_create(&l->env, 1, 1, c->err)));
+            l->env.rgb[0] = rad.x;
+            l->env.rgb[1] = rad.y;
+            l->env.rgb[2] = rad.z;
+        }
+        return LU_OK;
+    } else {
+        jpath tp = jp_key(p, "type");
+        return scene_fail(c, &tp, LU_ERR_SCENE, "unknown light type \"%s\" (point, spot, directional, environment)",
+                          type);
+    }
+    if (l->type != LU_LIGHT_POINT) {
+        if (lu_v3_len(l->direction) <= 0.0f) {
+            jpath dp = jp_key(p, "direction");
+            return scene_fail(c, &dp, LU_ERR_SCENE, "direction must be non-zero");
+        }
+        l->direction = lu_v3_norm(l->direction);
+    }
+    return LU_OK;
+}
+
+/* "density": {"constant": v} | {"file": "x.nvdb", "grid": "density"} |
+ *            {"raw": "x.raw", "dims": [nx,ny,nz], "voxel_size": h, "origin": [x,y,z]} |
+ *            {"procedural": NAME, ...params} */
+static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p, lu_medium *m) {
+    const cJSON *d = cJSON_GetObjectItemCaseSensitive(parent, "density");
+    jpath dp = jp_key(p, "density");
+    if (!d) return scene_fail(c, &dp, LU_ERR_SCENE, "missing required object");
+    if (!cJSON_IsObject(d)) return scene_fail(c, &dp, LU_ERR_SCENE, "expected an object");
+    if (cJSON_HasObjectItem(d, "constant")) {
+        static const char *const keys[] = {"constant", NULL};
+        TRY(check_object(c, d, &dp, keys));
+        m->kind = LU_DENSITY_CONSTANT;
+        return get_float(c, d, &dp, "constant", 1.0, 0.0, 1e6, true, &m->constant);
+    }
+    m->kind = LU_DENSITY_GRID;
+    if (cJSON_HasObjectItem(d, "file")) {
+        static const char *const keys[] = {"file", "grid", NULL};
+        TRY(check_object(c, d, &dp, keys));
+        const char *file, *grid;
+        TRY(get_string(c, d, &dp, "file", true, &file));
+        TRY(get_string(c, d, &dp, "grid", false, &grid));
+        char path[1024];
+        lu_path_resolve(c->file, file, path, sizeof path);
+        if (!lu_path_has_suffix(path, ".nvdb")) {
+            jpath fp = jp_key(&dp, "file");
+            return scene_fail(c, &fp, LU_ERR_UNSUPPORTED,
+                              "\"%s\" is not a .nvdb file (convert OpenVDB with nanovdb_convert; raw grids use \"raw\")",
+                              file);
+        }
+        return wrap_loader(c, &dp, lu_grid_load_nvdb(path, grid, &m->grid, c->err));
+    }
+    if (cJSON_HasObjectItem(d, "raw")) {
+        static const char *const keys[] = {"raw", "dims", "voxel_size", "origin", NULL};
+        TRY(check_object(c, d, &dp, keys));
+        const char *file;
+        TRY(get_string(c, d, &dp, "raw", true, &file));
+        lu_vec3 dims, origin;
+        float h;
+        TRY(get_vec3(c, d, &dp, "dims", lu_v3s(0), 1, 65536, true, false, &dims));
+        TRY(get_float(c, d, &dp, "voxel_size", 1.0, 1e-9, 1e9, false, &h));
+        TRY(get_vec3(c, d, &dp, "origin", lu_v3s(0), -1e6, 1e6, false, false, &origin));
+        if (dims.x != floorf(dims.x) || dims.y != floorf(dims.y) || dims.z != floorf(dims.z)) {
+            jpath kp = jp_key(&dp, "dims");
+            return scene_fail(c, &kp, LU_ERR_SCENE, "dims must be integers");
+        }
+        char path[1024];
+        lu_path_resolve(c->file, file, path, sizeof path);
+        TRY(wrap_loader(c, &dp, lu_grid_load_raw(path, (int)dims.x, (int)dims.y, (int)dims.z, &m->grid, c->err)));
+        lu_affine s = lu_affine_scale(lu_v3s(h)), t = lu_affine_translate(origin);
+        m->grid.index_to_world = lu_affine_mul(&t, &s);
+        return LU_OK;
+    }
+    if (cJSON_HasObjectItem(d, "voxelize")) {
+        /* A fog volume from a closed mesh: density = value * inside fraction. */
+        static const char *const keys[] = {"voxelize", "resolution", "value", "supersample", NULL};
+        TRY(check_object(c, d, &dp, keys));
+        int res, ss;
+        float value;
+        TRY(get_int(c, d, &dp, "resolution", 64, 4, 1024, false, &res));
+        TRY(get_int(c, d, &dp, "supersample", 2, 1, 8, false, &ss));
+        TRY(get_float(c, d, &dp, "value", 1.0, 0.0, 1e6, false, &value));
+        lu_mesh mesh = {0};
+        TRY(parse_mesh_source(c, d, &dp, "voxelize", &mesh));
+        lu_accel *acc = NULL;
+        lu_result r = lu_accel_create(&acc, c->err);
+        uint32_t id;
+        if (r == LU_OK) r = lu_accel_add_mesh(acc, &mesh, &id, c->err);
+        if (r == LU_OK) r = lu_accel_commit(acc, c->err);
+        if (r == LU_OK) {
+            lu_aabb b = lu_mesh_bounds(&mesh);
+            lu_vec3 pad = lu_v3s(lu_v3_maxc(lu_v3_sub(b.hi, b.lo)) / (float)res);
+            b.lo = lu_v3_sub(b.lo, pad);
+            b.hi = lu_v3_add(b.hi, pad);
+            r = lu_voxelize(acc, b, res, ss, &m->grid, c->err);
+        }
+        if (acc) lu_accel_destroy(acc);
+        lu_mesh_destroy(&mesh);
+        if (r != LU_OK) return wrap_loader(c, &dp, r);
+        for (size_t i = 0; i < (size_t)m->grid.nx * m->grid.ny * m->grid.nz; i++) m->grid.data[i] *= value;
+        lu_grid_update_range(&m->grid);
+        return LU_OK;
+    }
+    if (cJSON_HasObjectItem(d, "procedural")) {
+        const char *name;
+        TRY(get_string(c, d, &dp, "procedural", true, &name));
+        lu_kvlist params = {0};
+        lu_result r = params_from_object(c, d, &dp, "procedural", &params);
+        if (r == LU_OK) {
+            char where[300];
+            snprintf(where, sizeof where, "%s: %s", c->file, dp.s);
+            r = lu_grid_procedural(name, &params, &m->grid, where, c->err);
+        }
+        lu_kv_free(&params);
+        return r;
+    }
+    return scene_fail(c, &dp, LU_ERR_SCENE,
+                      "expected one of \"constant\", \"file\", \"raw\", \"voxelize\", \"procedural\"");
+}
+
+static void medium_finish(lu_medium *m) {
+    lu_aabb box = lu_aabb_empty();
+    if (m->kind == LU_DENSITY_GRID) box = lu_aabb_transform(&m->index_to_world, lu_grid_index_support(&m->grid));
+    if (m->has_boundary) {
+        lu_aabb mb = lu_mesh_bounds(&m->boundary);
+        box = m->kind == LU_DENSITY_GRID ? (lu_aabb){lu_v3_max(box.lo, mb.lo), lu_v3_min(box.hi, mb.hi)} : mb;
+    }
+    m->bounds = box;
+}
+
+static lu_result parse_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_medium *m) {
+    static const char *const keys[] = {"density", "sigma_s", "sigma_a", "phase_g", "transform", "boundary", NULL};
+    TRY(check_object(c, o, p, keys));
+    m->from_object = -1;
+    m->eta = 1.0f;
+    TRY(parse_density(c, o, p, m));
+    TRY(get_vec3(c, o, p, "sigma_s", lu_v3s(1), 0, 1e6, true, true, &m->sigma_s));
+    TRY(get_vec3(c, o, p, "sigma_a", lu_v3s(0), 0, 1e6, false, true, &m->sigma_a));
+    TRY(get_float(c, o, p, "phase_g", 0.0, -0.99, 0.99, false, &m->phase_g));
+    lu_affine xf;
+    TRY(parse_transform(c, o, p, &xf));
+    m->index_to_world = m->kind == LU_DENSITY_GRID ? lu_affine_mul(&xf, &m->grid.index_to_world) : xf;
+    if (!lu_affine_invert(&m->index_to_world, &m->world_to_index))
+        return scene_fail(c, p, LU_ERR_SCENE, "the grid's index-to-world map is singular");
+    const cJSON *b = cJSON_GetObjectItemCaseSensitive(o, "boundary");
+    if (b) {
+        jpath bp = jp_key(p, "boundary");
+        static const char *const bkeys[] = {"mesh", "eta", "surface", NULL};
+        TRY(check_object(c, b, &bp, bkeys));
+        TRY(parse_mesh_source(c, b, &bp, "mesh", &m->boundary));
+        lu_mesh_transform(&m->boundary, &xf);
+        m->has_boundary = true;
+        TRY(get_float(c, b, &bp, "eta", 1.5, 1.0, 4.0, false, &m->eta));
+        TRY(parse_material(c, b, &bp, "surface", &m->surface));
+        if (!cJSON_HasObjectItem(b, "surface")) {
+            /* Default boundary: a clear glossy coat, no diffuse layer. */
+            m->surface.albedo = lu_v3s(0.0f);
+            m->surface.specular = lu_v3s(1.0f);
+            m->surface.shininess = 64.0f;
+        }
+        if (m->surface.type != LU_MATERIAL_DIFFUSE) {
+            jpath sp = jp_key(&bp, "surface");
+            return scene_fail(c, &sp, LU_ERR_SCENE, "a boundary surface must be of type \"diffuse\"");
+        }
+    } else if (m->kind == LU_DENSITY_CONSTANT) {
+        return scene_fail(c, p, LU_ERR_SCENE, "a constant density needs a \"boundary\" mesh to bound it");
+    }
+    medium_finish(m);
+    return LU_OK;
+}
+
+static lu_result parse_object(parse_ctx *c, const cJSON *o, const jpath *p, lu_object *obj) {
+    static const char *const keys[] = {"mesh", "transform", "material", NULL};
+    TRY(check_object(c, o, p, keys));
+    TRY(parse_mesh_source(c, o, p, "mesh", &obj->mesh));
+    lu_affine xf;
+    TRY(parse_transform(c, o, p, &xf));
+    lu_mesh_transform(&obj->mesh, &xf);
+    return parse_material(c, o, p, "material", &obj->material);
+}
+
+/* Each translucent object is also a bounded homogeneous medium (see scene.h). */
+static lu_result add_object_media(parse_ctx *c, lu_scene *s) {
+    int extra = 0;
+    for (int i = 0; i < s->object_count; i++) extra += s->objects[i].material.type == LU_MATERIAL_TRANSLUCENT;
+    if (!extra) return LU_OK;
+    lu_medium *media = realloc(s->media, (size_t)(s->medium_count + extra) * sizeof *media);
+    if (!media) return lu_fail(c->err, LU_ERR_NOMEM, "%s: out of memory", c->file);
+    s->media = media;
+    for (int i = 0; i < s->object_count; i++) {
+        const lu_object *obj = &s->objects[i];
+        if (obj->material.type != LU_MATERIAL_TRANSLUCENT) continue;
+        lu_medium *m = &s->media[s->medium_count];
+        memset(m, 0, sizeof *m);
+        m->kind = LU_DENSITY_CONSTANT;
+        m->constant = 1.0f;
+        m->index_to_world = m->world_to_index = lu_affine_identity();
+        m->sigma_s = obj->material.sigma_s;
+        m->sigma_a = obj->material.sigma_a;
+        m->phase_g = obj->material.g;
+        m->has_boundary = true;
+        m->eta = obj->material.eta;
+        m->surface.type = LU_MATERIAL_DIFFUSE;
+        m->surface.specular = obj->material.specular;
+        m->surface.shininess = obj->material.shininess;
+        m->from_object = i;
+        s->medium_count++;
+        jpath p;
+        snprintf(p.s, sizeof p.s, "$.objects[%d]", i);
+        TRY(wrap_loader(c, &p, lu_mesh_alloc(&m->boundary, obj->mesh.vertex_count, obj->mesh.triangle_count, c->err)));
+        memcpy(m->boundary.positions, obj->mesh.positions, obj->mesh.vertex_count * sizeof(lu_vec3));
+        memcpy(m->boundary.normals, obj->mesh.normals, obj->mesh.vertex_count * sizeof(lu_vec3));
+        memcpy(m->boundary.indices, obj->mesh.indices, 3u * obj->mesh.triangle_count * sizeof(uint32_t));
+        medium_finish(m);
+    }
+    return LU_OK;
+}
+
+/* Allocates the array for a JSON list and parses each element with fn. */
+#define PARSE_LIST(KEY, ARRAY, COUNT, FN)                                                           \
+    do {                                                                                            \
+        const cJSON *list_ = cJSON_GetObjectItemCaseSensitive(root, KEY);                           \
+        jpath lp_ = {"$." KEY};                                                                     \
+        if (list_) {                                                                                \
+            if (!cJSON_IsArray(list_)) return scene_fail(c, &lp_, LU_ERR_SCENE, "expected an array"); \
+            int n_ = cJSON_GetArraySize(list_);                                                     \
+            if (n_ > LU_SCENE_MAX_ITEMS)                                                            \
+                return scene_fail(c, &lp_, LU_ERR_LIMIT, "%d entries exceed the limit of %d", n_,  \
+                                  LU_SCENE_MAX_ITEMS);                                              \
+            if (n_ > 0) {                                                                           \
+                ARRAY = calloc((size_t)n_, sizeof *ARRAY);                                          \
+                if (!ARRAY) return lu_fail(c->err, LU_ERR_NOMEM, "%s: out of memory", c->file);     \
+            }                                                                                       \
+            int i_ = 0;                                                                             \
+            for (const cJSON *it_ = list_->child; it_; it_ = it_->next, i_++) {                     \
+                jpath ip_ = jp_index(&lp_, i_);                                                     \
+                COUNT = i_ + 1;                                                                     \
+                TRY(FN(c, it_, &ip_, &ARRAY[i_]));                                                  \
+            }                                                                                       \
+        }                                                                                           \
+    } while (0)
+
+static lu_result parse_root(parse_ctx *c, const cJSON *root, lu_scene *s) {
+    jpath rp = {"$"};
+    static const char *const keys[] = {"name", "description", "reproduces", "camera", "background",
+                                       "lights", "media", "objects", NULL};
+    TRY(check_object(c, root, &rp, keys));
+    const char *str;
+    TRY(get_string(c, root, &rp, "name", false, &str));
+    TRY(get_string(c, root, &rp, "description", false, &str));
+    TRY(get_string(c, root, &rp, "reproduces", false, &str));
+    TRY(parse_camera(c, root, &s->camera));
+    TRY(get_vec3(c, root, &rp, "background", lu_v3s(0), 0, 1e9, false, true, &s->background));
+    PARSE_LIST("lights", s->lights, s->light_count, parse_light);
+    PARSE_LIST("media", s->media, s->medium_count, parse_medium);
+    PARSE_LIST("objects", s->objects, s->object_count, parse_object);
+    return add_object_media(c, s);
+}
+
+/* Byte offset -> "line L, column C" for cJSON's syntax errors. */
+static void line_col(const char *text, size_t offset, int *line, int *col) {
+    *line = 1;
+    *col = 1;
+    for (size_t i = 0; i < offset && text[i]; i++) {
+        if (text[i] == '\n') {
+            (*line)++;
+            *col = 1;
+        } else {
+            (*col)++;
+        }
+    }
+}
+
+lu_result lu_scene_load_string(const char *json, const char *base_path, lu_scene *scene, lu_error *err) {
+    memset(scene, 0, sizeof *scene);
+    const char *file = base_path && *base_path ? base_path : "<scene>";
+    snprintf(scene->path, sizeof scene->path, "%s", base_path ? base_path : "");
+    parse_ctx c = {file, err};
+    size_t len = strlen(json);
+    const char *end = NULL;
+    cJSON *root = cJSON_ParseWithLengthOpts(json, len, &end, true);
+    if (!root) {
+        size_t off = end && end >= json ? (size_t)(end - json) : 0;
+        int line, col;
+        line_col(json, off, &line, &col);
+        return lu_fail(err, LU_ERR_FORMAT, "%s:%d:%d: JSON syntax error near byte %zu", file, line, col, off);
+    }
+    lu_error local;
+    if (!err) c.err = &local;
+    lu_result r = parse_root(&c, root, scene);
+    cJSON_Delete(root);
+    if (r != LU_OK) lu_scene_destroy(scene);
+    return r;
+}
+
+lu_result lu_scene_load(const char *path, lu_scene *scene, lu_error *err) {
+    memset(scene, 0, sizeof *scene);
+    char *text;
+    size_t size;
+    lu_result r = lu_read_file(path, LU_SCENE_MAX_BYTES, &text, &size, err);
+    if (r != LU_OK) return r;
+    if (strlen(text) != size) {
+        free(text);
+        return lu_fail(err, LU_ERR_FORMAT, "%s: offset %zu: NUL byte in a JSON file", path, strlen(text));
+    }
+    r = lu_scene_load_string(text, path, scene, err);
+    free(text);
+    return r;
+}

@@ -1,0 +1,156 @@
+/* Scene loading: the JSON contract, strictness with JSON paths, transforms,
+ * translucent objects as media, and every bundled scene. */
+#include <lucent/lucent.h>
+
+#include <dirent.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "lu_test.h"
+
+#define CAMERA "\"camera\": {\"position\": [0, 0, 5], \"look_at\": [0, 0, 0], \"width\": 8, \"height\": 8}"
+
+/* Loading must fail with `code` and a message containing every needle. */
+static void expect_error(const char *json, lu_result code, const char *needle1, const char *needle2) {
+    lu_scene s;
+    lu_error err = {0};
+    lu_result r = lu_scene_load_string(json, "bad.json", &s, &err);
+    CHECK_MSG(r == code, "expected %s, got %s (%s) for %s", lu_result_name(code), lu_result_name(r), err.message, json);
+    CHECK_MSG(strstr(err.message, "bad.json") != NULL, "message lacks the file: %s", err.message);
+    if (needle1) CHECK_MSG(strstr(err.message, needle1) != NULL, "message lacks \"%s\": %s", needle1, err.message);
+    if (needle2) CHECK_MSG(strstr(err.message, needle2) != NULL, "message lacks \"%s\": %s", needle2, err.message);
+    if (r == LU_OK) lu_scene_destroy(&s);
+}
+
+static void test_strict_errors(void) {
+    expect_error("{" CAMERA ", \"lights\": [{\"type\": \"point\", \"position\": [0,0,0], \"intensity\": 1, \"colour\": 1}]}",
+                 LU_ERR_SCENE, "$.lights[0].colour", "unknown key");
+    expect_error("{" CAMERA ", \"extra\": 1}", LU_ERR_SCENE, "$.extra", NULL);
+    expect_error("{\"camera\": {\"position\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov\": 40}}", LU_ERR_SCENE,
+                 "$.camera.fov", NULL);
+    expect_error("{" CAMERA ", \"lights\": [{\"type\": \"area\"}]}", LU_ERR_SCENE, "$.lights[0].type", "area");
+    expect_error("{" CAMERA ", \"lights\": [{\"type\": \"point\", \"position\": [0, 0], \"intensity\": 1}]}",
+                 LU_ERR_SCENE, "$.lights[0].position", "3 numbers");
+    expect_error("{" CAMERA ", \"lights\": [{\"type\": \"point\", \"position\": \"here\", \"intensity\": 1}]}",
+                 LU_ERR_SCENE, "$.lights[0].position", NULL);
+    expect_error("{" CAMERA ", \"lights\": [{\"type\": \"point\", \"position\": [0,0,0], \"intensity\": 1e999}]}",
+                 LU_ERR_NONFINITE, "$.lights[0].intensity", NULL);
+    expect_error("{" CAMERA ", \"lights\": [{\"type\": \"point\", \"position\": [0,0,0], \"intensity\": -1}]}",
+                 LU_ERR_RANGE, "$.lights[0].intensity", NULL);
+    expect_error("{" CAMERA ", \"lights\": [{\"type\": \"spot\", \"position\": [0,0,0], \"direction\": [0,-1,0],"
+                 " \"intensity\": 1, \"inner_deg\": 30, \"outer_deg\": 20}]}",
+                 LU_ERR_RANGE, "inner_deg", NULL);
+    expect_error("{" CAMERA ", \"background\": [0,0,0], \"background\": [1,1,1]}", LU_ERR_SCENE, "$.background",
+                 "duplicate");
+    expect_error("{\"lights\": []}", LU_ERR_SCENE, "$.camera", "missing");
+    expect_error("{\"camera\": {\"position\": [0, 0, 5], \"look_at\": [0, 0, 5]}}", LU_ERR_SCENE, "$.camera", NULL);
+    expect_error("{\"camera\": {\"position\": [0, 0, 5], \"look_at\": [0, 0, 0], \"width\": 0}}", LU_ERR_RANGE,
+                 "$.camera.width", NULL);
+    expect_error("{\"camera\": {\"position\": [0, 0, 5], \"look_at\": [0, 0, 0], \"width\": 10.5}}", LU_ERR_SCENE,
+                 "$.camera.width", "integer");
+    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": 1}]}", LU_ERR_SCENE,
+                 "$.media[0]", "boundary");
+    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"procedural\": \"uniform_box\", \"colour\": 2},"
+                 " \"sigma_s\": 1}]}",
+                 LU_ERR_SCENE, "colour", NULL);
+    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"procedural\": \"no_such_generator\"}, \"sigma_s\": 1}]}",
+                 LU_ERR_SCENE, "no_such_generator", NULL);
+    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"file\": \"missing.nvdb\"}, \"sigma_s\": 1}]}", LU_ERR_IO,
+                 "$.media[0].density", "missing.nvdb");
+    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"file\": \"x.vdb\"}, \"sigma_s\": 1}]}", LU_ERR_UNSUPPORTED,
+                 "nanovdb_convert", NULL);
+    expect_error("{" CAMERA ", \"objects\": [{\"mesh\": \"missing.ply\"}]}", LU_ERR_IO, "$.objects[0].mesh",
+                 "missing.ply");
+    expect_error("{" CAMERA ", \"objects\": [{\"mesh\": {\"procedural\": \"box\"}, \"material\": {\"type\": \"metal\"}}]}",
+                 LU_ERR_SCENE, "$.objects[0].material.type", "metal");
+    expect_error("{" CAMERA ", \"objects\": [{\"mesh\": {\"procedural\": \"box\"},"
+                 " \"material\": {\"type\": \"translucent\", \"preset\": \"jelly\"}}]}",
+                 LU_ERR_SCENE, "jelly", "marble");
+    expect_error("{" CAMERA ", \"objects\": [{\"mesh\": {\"procedural\": \"box\"},"
+                 " \"material\": {\"type\": \"diffuse\", \"preset\": \"marble\"}}]}",
+                 LU_ERR_SCENE, "$.objects[0].material.preset", NULL);
+    expect_error("{" CAMERA ", \"objects\": [{\"mesh\": {\"procedural\": \"box\"}, \"transform\": {\"scale\": 0}}]}",
+                 LU_ERR_RANGE, "$.objects[0].transform.scale", NULL);
+    /* Syntax errors report line and column. */
+    expect_error("{\n  \"camera\": {\n    \"position\": [0, 0, 5],,\n  }\n}", LU_ERR_FORMAT, "bad.json:3:", "syntax");
+}
+
+static void test_transform_and_translucent(void) {
+    const char *json = "{" CAMERA ", \"objects\": ["
+                       " {\"mesh\": {\"procedural\": \"box\", \"size\": [2, 2, 2]},"
+                       "  \"transform\": {\"translate\": [1, 2, 3], \"rotate_deg\": [0, 90, 0], \"scale\": [1, 2, 3]}},"
+                       " {\"mesh\": {\"procedural\": \"sphere\", \"radius\": 1},"
+                       "  \"material\": {\"type\": \"translucent\", \"preset\": \"marble\", \"mm_per_unit\": 10}}]}";
+    lu_scene s;
+    lu_error err = {0};
+    CHECK_OK(lu_scene_load_string(json, "t.json", &s, &err), &err);
+    if (err.code != LU_OK) return;
+    /* Scale (1,2,3), then 90 degrees about Y (x -> -z, z -> x), then translate. */
+    lu_aabb b = lu_mesh_bounds(&s.objects[0].mesh);
+    CHECK_NEAR(b.lo.x, 1 - 3, 1e-5);
+    CHECK_NEAR(b.hi.x, 1 + 3, 1e-5);
+    CHECK_NEAR(b.lo.y, 2 - 2, 1e-5);
+    CHECK_NEAR(b.hi.z, 3 + 1, 1e-5);
+    /* The translucent sphere is also a bounded homogeneous medium in scene units:
+     * marble sigma_s' = 2.19 / mm, 10 mm per unit -> 21.9 per unit. */
+    CHECK(s.medium_count == 1);
+    CHECK(s.media[0].from_object == 1);
+    CHECK(s.media[0].has_boundary && s.media[0].kind == LU_DENSITY_CONSTANT);
+    CHECK_REL(s.media[0].sigma_s.x, 21.9, 1e-5);
+    CHECK_REL(s.media[0].sigma_a.z, 0.071, 1e-5);
+    CHECK_REL(s.media[0].eta, 1.3, 1e-6);
+    CHECK(s.media[0].boundary.triangle_count == s.objects[1].mesh.triangle_count);
+    CHECK(s.objects[1].material.type == LU_MATERIAL_TRANSLUCENT);
+    lu_scene_destroy(&s);
+}
+
+static void test_grid_transform(void) {
+    /* The scene transform composes after the grid's own index-to-world map:
+     * the support box of a 16^3 uniform box of size 2 spans [-1 - h/2, 1 + h/2]
+     * with h = 2/16; translated by 5 in x it moves with it. */
+    const char *json = "{" CAMERA ", \"media\": [{\"density\": {\"procedural\": \"uniform_box\", \"resolution\": 16,"
+                       " \"size\": [2, 2, 2]}, \"sigma_s\": 1, \"transform\": {\"translate\": [5, 0, 0]}}]}";
+    lu_scene s;
+    lu_error err = {0};
+    CHECK_OK(lu_scene_load_string(json, "t.json", &s, &err), &err);
+    if (err.code != LU_OK) return;
+    double h = 2.0 / 16.0;
+    CHECK_NEAR(s.media[0].bounds.lo.x, 5 - 1 - h / 2, 1e-5);
+    CHECK_NEAR(s.media[0].bounds.hi.x, 5 + 1 + h / 2, 1e-5);
+    lu_vec3 c = lu_affine_point(&s.media[0].index_to_world, lu_v3(0, 0, 0));
+    CHECK_NEAR(c.x, 5 - 1 + h / 2, 1e-5); /* voxel 0's centre */
+    lu_scene_destroy(&s);
+}
+
+static void test_bundled_scenes_load(void) {
+    DIR *dir = opendir(LU_SOURCE_DIR "/scenes");
+    CHECK(dir != NULL);
+    if (!dir) return;
+    int n = 0;
+    for (struct dirent *e; (e = readdir(dir));) {
+        if (!strstr(e->d_name, ".json")) continue;
+        char path[1024];
+        snprintf(path, sizeof path, LU_SOURCE_DIR "/scenes/%s", e->d_name);
+        lu_scene s;
+        lu_error err = {0};
+        CHECK_OK(lu_scene_load(path, &s, &err), &err);
+        if (err.code == LU_OK) {
+            CHECK_MSG(s.light_count > 0, "%s has no lights", e->d_name);
+            CHECK_MSG(s.medium_count > 0, "%s has no media", e->d_name);
+            for (int m = 0; m < s.medium_count; m++)
+                CHECK_MSG(lu_aabb_valid(s.media[m].bounds), "%s medium %d has empty bounds", e->d_name, m);
+            lu_scene_destroy(&s);
+        }
+        n++;
+    }
+    closedir(dir);
+    CHECK(n >= 9);
+}
+
+int main(void) {
+    RUN_TEST(test_strict_errors);
+    RUN_TEST(test_transform_and_translucent);
+    RUN_TEST(test_grid_transform);
+    RUN_TEST(test_bundled_scenes_load);
+    TEST_EXIT();
+}
