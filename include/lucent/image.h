@@ -40,6 +40,11 @@ lu_result lu_image_save(const lu_image *img, const char *path, const lu_image_sa
  * LU_MAX_IMAGE_DIM with the file name and reason. */
 lu_result lu_image_load(const char *path, lu_image *img, lu_error *err);
 
+/* The exact piecewise sRGB transfer function (IEC 61966-2-1), not gamma 2.2.
+ * Inputs <= 0 (and NaN) map to 0; encode does not clamp above 1. */
+float lu_srgb_encode(float linear);
+float lu_srgb_decode(float encoded);
+
 /* ---- metrics ---------------------------------------------------------- */
 
 typedef struct lu_metrics {
@@ -53,9 +58,15 @@ typedef struct lu_metrics {
 /* Sizes must match. */
 lu_result lu_image_compare(const lu_image *a, const lu_image *b, lu_metrics *out, lu_error *err);
 /* False-colour |a - b| per pixel (luminance of the difference), mapped through
- * a perceptual colour ramp; scale 0 picks the 99th percentile as full scale. */
+ * a perceptual colour ramp; scale 0 picks the 99th percentile as full scale.
+ * *out is created here (linear RGB; save it as PNG with exposure 0 to see the
+ * ramp's display colours) and the caller destroys it. */
 lu_result lu_image_diff_false_colour(const lu_image *a, const lu_image *b, float scale, lu_image *out,
                                      lu_error *err);
+/* The ramp itself, t in [0, 1] (clamped) to linear RGB: CIE L* rises linearly
+ * from 0 (black) to 100 (white) through purple, red, orange and yellow, so
+ * lightness alone orders the values. */
+void lu_false_colour_ramp(float t, float rgb[3]);
 
 #ifdef __cplusplus
 }
