@@ -184,7 +184,7 @@ static lu_result read_header(ply_state *st) {
     lu_result r = lu_stream_line(&st->s, &line, st->err);
     if (r != LU_OK) return r;
     st->format = FMT_ASCII; /* header errors are reported by line */
-    if (!line || strcmp(line, "ply") != 0)
+    if (!line || strncmp(line, "ply", 3) != 0 || *lu_skip_blank(line + 3) != '\0')
         return lu_fail(st->err, LU_ERR_FORMAT, "%s:1: not a PLY file (the first line must be \"ply\")", st->path);
     int format = -1;
     for (;;) {
