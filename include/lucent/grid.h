@@ -44,11 +44,26 @@ lu_aabb lu_grid_index_support(const lu_grid *g);
  * grid), sparse tree with tiles expanded into the dense bounding box of its
  * active values; index_to_world from the grid's map. Fails with
  * LU_ERR_UNSUPPORTED for non-float grids and LU_ERR_LIMIT past
- * LU_MAX_GRID_VOXELS. */
+ * LU_MAX_GRID_VOXELS.
+ * Details: dense index 0 is the box's lowest corner, so index_to_world is
+ * the file's map composed with that offset (world positions are preserved).
+ * Codecs NONE and ZIP are read; BLOSC, level sets, a non-zero background,
+ * grids without active voxels -> LU_ERR_UNSUPPORTED; negative densities ->
+ * LU_ERR_RANGE, NaN/inf -> LU_ERR_NONFINITE (naming the voxel); a name not
+ * in the file -> LU_ERR_INVALID_ARG (listing the grids); malformed or
+ * truncated files -> LU_ERR_FORMAT with the byte offset. */
 lu_result lu_grid_load_nvdb(const char *path, const char *grid_name, lu_grid *g, lu_error *err);
-/* Writes a NanoVDB float grid (values equal to 0 become inactive background). */
+/* The same from a file image in memory; `label` stands for the path in errors. */
+lu_result lu_grid_load_nvdb_memory(const void *data, size_t size, const char *label, const char *grid_name,
+                                   lu_grid *g, lu_error *err);
+/* Writes a NanoVDB float grid (values equal to 0 become inactive background),
+ * fog-volume class, named g->name ("density" if empty), uncompressed, built
+ * by NanoVDB's own GridBuilder (constant regions become tiles). Refuses
+ * negative or non-finite values and a singular map. Atomic (temp + rename). */
 lu_result lu_grid_save_nvdb(const lu_grid *g, const char *path, lu_error *err);
-/* Raw little-endian float32, x fastest; the file size must be nx*ny*nz*4. */
+/* Raw little-endian float32, x fastest; the file size must be nx*ny*nz*4.
+ * Loading rejects negative (LU_ERR_RANGE) and NaN/inf values with the byte
+ * offset; the map is the identity and the name the file's base name. */
 lu_result lu_grid_load_raw(const char *path, int nx, int ny, int nz, lu_grid *g, lu_error *err);
 lu_result lu_grid_save_raw(const lu_grid *g, const char *path, lu_error *err);
 
@@ -65,6 +80,21 @@ lu_result lu_grid_save_raw(const lu_grid *g, const char *path, lu_error *err);
  *                    which the scene places as an opaque object)
  *   "dusty_room"     bottom=0.6 top=0.3 noise=0.15 frequency=3 seed=1 (linear in y + noise)
  *   "smoke_plume"    seed=1 (a rising fBm-modulated plume for smoke-in-a-box)
+ * `resolution` may also be [nx, ny, nz]; with one number the other sides get
+ * round(N * size_i / longest) voxels; h_i = size_i / n_i so the box is exact.
+ * Lengths are world units, noise frequencies cycles per world unit; noise is
+ * seeded gradient noise (src/volume/lu_noise.h), identical for any thread
+ * count. g->name is the generator name. Details per generator:
+ *   sphere: value * clamp(0.5 - (d - radius) / h, 0, 1), h the smallest voxel side;
+ *   gaussians: centres uniform in the middle 70 % of the box, sigma uniform
+ *     in [min, max] (or one number), every peak `amplitude`;
+ *   fbm_cloud: fBm thresholded so about `coverage` of the ball of `radius`
+ *     is cloud, times 1 - (r / radius)^2, in [0, 1];
+ *   layered_cube: slabs along `axis` (0 x, 1 y, 2 z) starting with `low`,
+ *     each voxel the exact average over its extent;
+ *   torus_in_cube: torus around the y axis through `center`, ramped edge;
+ *   dusty_room: bottom + (top - bottom) * t(y) + noise * fBm(3 octaves), >= 0;
+ *   smoke_plume: widening column from the floor centre, peak density ~1.
  * Unknown names or parameters are errors naming `where`. */
 lu_result lu_grid_procedural(const char *name, const lu_kvlist *params, lu_grid *g, const char *where,
                              lu_error *err);

@@ -1,0 +1,191 @@
+/* Dense density grids: storage, trilinear sampling, raw float32 files. */
+#include <lucent/grid.h>
+
+#include <errno.h>
+#include <float.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+lu_result lu_grid_alloc(lu_grid *g, int nx, int ny, int nz, lu_error *err) {
+    memset(g, 0, sizeof *g);
+    g->index_to_world = lu_affine_identity();
+    if (nx < 1 || ny < 1 || nz < 1)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "grid dimensions %d x %d x %d: every side must be at least 1", nx, ny,
+                       nz);
+    /* Each side is below 2^31, so the pairwise product fits in 64 bits and is
+     * compared before the third factor can overflow. */
+    uint64_t xy = (uint64_t)nx * (uint64_t)ny;
+    if (xy > LU_MAX_GRID_VOXELS || xy * (uint64_t)nz > LU_MAX_GRID_VOXELS)
+        return lu_fail(err, LU_ERR_LIMIT, "grid of %d x %d x %d voxels exceeds the limit of %llu voxels", nx, ny, nz,
+                       (unsigned long long)LU_MAX_GRID_VOXELS);
+    size_t count = (size_t)(xy * (uint64_t)nz);
+    float *data = calloc(count, sizeof *data);
+    if (!data)
+        return lu_fail(err, LU_ERR_NOMEM, "out of memory allocating a %d x %d x %d grid (%zu bytes)", nx, ny, nz,
+                       count * sizeof *data);
+    g->nx = nx;
+    g->ny = ny;
+    g->nz = nz;
+    g->data = data;
+    return LU_OK;
+}
+
+void lu_grid_destroy(lu_grid *g) {
+    if (!g) return;
+    free(g->data);
+    memset(g, 0, sizeof *g);
+}
+
+void lu_grid_update_range(lu_grid *g) {
+    size_t n = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
+    if (!g->data || n == 0) {
+        g->min_value = g->max_value = 0.0f;
+        return;
+    }
+    float lo = g->data[0], hi = g->data[0];
+    for (size_t i = 1; i < n; i++) {
+        float v = g->data[i];
+        if (v < lo) lo = v;
+        if (v > hi) hi = v;
+    }
+    g->min_value = lo;
+    g->max_value = hi;
+}
+
+/* Texel centres sit on integers and every texel outside [0, n-1] reads 0,
+ * exactly like a GL_LINEAR texture with a zero border: weights come from the
+ * fractional part, the eight neighbours from lu_grid_at. */
+float lu_grid_sample(const lu_grid *g, lu_vec3 p) {
+    /* Also rejects NaN, and keeps floorf's result inside int range. */
+    if (!(p.x >= -1.0f && p.y >= -1.0f && p.z >= -1.0f && p.x <= (float)g->nx && p.y <= (float)g->ny &&
+          p.z <= (float)g->nz))
+        return 0.0f;
+    float fx = floorf(p.x), fy = floorf(p.y), fz = floorf(p.z);
+    int x = (int)fx, y = (int)fy, z = (int)fz;
+    float tx = p.x - fx, ty = p.y - fy, tz = p.z - fz;
+    float c000 = lu_grid_at(g, x, y, z), c100 = lu_grid_at(g, x + 1, y, z);
+    float c010 = lu_grid_at(g, x, y + 1, z), c110 = lu_grid_at(g, x + 1, y + 1, z);
+    float c001 = lu_grid_at(g, x, y, z + 1), c101 = lu_grid_at(g, x + 1, y, z + 1);
+    float c011 = lu_grid_at(g, x, y + 1, z + 1), c111 = lu_grid_at(g, x + 1, y + 1, z + 1);
+    float c00 = (1.0f - tx) * c000 + tx * c100;
+    float c10 = (1.0f - tx) * c010 + tx * c110;
+    float c01 = (1.0f - tx) * c001 + tx * c101;
+    float c11 = (1.0f - tx) * c011 + tx * c111;
+    float c0 = (1.0f - ty) * c00 + ty * c10;
+    float c1 = (1.0f - ty) * c01 + ty * c11;
+    return (1.0f - tz) * c0 + tz * c1;
+}
+
+lu_aabb lu_grid_index_support(const lu_grid *g) {
+    lu_aabb b = {lu_v3(-1.0f, -1.0f, -1.0f), lu_v3((float)g->nx, (float)g->ny, (float)g->nz)};
+    return b;
+}
+
+/* ---- raw float32 little-endian ------------------------------------------ */
+
+static float le_to_float(const unsigned char *b) {
+    uint32_t u = (uint32_t)b[0] | ((uint32_t)b[1] << 8) | ((uint32_t)b[2] << 16) | ((uint32_t)b[3] << 24);
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
+static void float_to_le(float f, unsigned char *b) {
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    b[0] = (unsigned char)u;
+    b[1] = (unsigned char)(u >> 8);
+    b[2] = (unsigned char)(u >> 16);
+    b[3] = (unsigned char)(u >> 24);
+}
+
+lu_result lu_grid_load_raw(const char *path, int nx, int ny, int nz, lu_grid *g, lu_error *err) {
+    memset(g, 0, sizeof *g);
+    if (nx < 1 || ny < 1 || nz < 1)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "%s: raw grid dimensions %d x %d x %d: every side must be at least 1",
+                       path, nx, ny, nz);
+    uint64_t xy = (uint64_t)nx * (uint64_t)ny;
+    if (xy > LU_MAX_GRID_VOXELS || xy * (uint64_t)nz > LU_MAX_GRID_VOXELS)
+        return lu_fail(err, LU_ERR_LIMIT, "%s: raw grid of %d x %d x %d voxels exceeds the limit of %llu voxels", path,
+                       nx, ny, nz, (unsigned long long)LU_MAX_GRID_VOXELS);
+    uint64_t expect = xy * (uint64_t)nz * 4u;
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return lu_fail(err, LU_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat st;
+    if (fstat(fileno(fp), &st) != 0 || !S_ISREG(st.st_mode)) {
+        fclose(fp);
+        return lu_fail(err, LU_ERR_IO, "%s: not a regular file", path);
+    }
+    if ((uint64_t)st.st_size != expect) {
+        fclose(fp);
+        return lu_fail(err, LU_ERR_FORMAT,
+                       "%s: raw float32 grid of %d x %d x %d voxels needs %llu bytes, but the file has %lld bytes", path,
+                       nx, ny, nz, (unsigned long long)expect, (long long)st.st_size);
+    }
+    lu_result r = lu_grid_alloc(g, nx, ny, nz, err);
+    if (r != LU_OK) {
+        fclose(fp);
+        return r;
+    }
+    size_t count = (size_t)(expect / 4u);
+    unsigned char buf[1 << 16];
+    size_t done = 0;
+    while (done < count) {
+        size_t want = count - done;
+        if (want > sizeof buf / 4) want = sizeof buf / 4;
+        size_t got = fread(buf, 4, want, fp);
+        if (got != want) {
+            fclose(fp);
+            lu_grid_destroy(g);
+            return lu_fail(err, LU_ERR_IO, "%s: short read at byte offset %llu", path,
+                           (unsigned long long)(done + got) * 4u);
+        }
+        for (size_t i = 0; i < want; i++) {
+            float v = le_to_float(buf + 4 * i);
+            unsigned long long off = (unsigned long long)(done + i) * 4u;
+            if (!isfinite(v)) {
+                fclose(fp);
+                lu_grid_destroy(g);
+                return lu_fail(err, LU_ERR_NONFINITE, "%s: byte offset %llu: density is not a finite number", path,
+                               off);
+            }
+            if (v < 0.0f) {
+                fclose(fp);
+                lu_grid_destroy(g);
+                return lu_fail(err, LU_ERR_RANGE, "%s: byte offset %llu: density %g is negative", path, off,
+                               (double)v);
+            }
+            g->data[done + i] = v;
+        }
+        done += want;
+    }
+    fclose(fp);
+    const char *slash = strrchr(path, '/');
+    snprintf(g->name, sizeof g->name, "%s", slash ? slash + 1 : path);
+    lu_grid_update_range(g);
+    return LU_OK;
+}
+
+lu_result lu_grid_save_raw(const lu_grid *g, const char *path, lu_error *err) {
+    if (!g || !g->data || g->nx < 1 || g->ny < 1 || g->nz < 1)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "%s: cannot save an empty grid", path);
+    lu_atomic_file f;
+    lu_result r = lu_atomic_open(&f, path, err);
+    if (r != LU_OK) return r;
+    size_t count = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
+    unsigned char buf[1 << 16];
+    size_t done = 0;
+    while (done < count) {
+        size_t n = count - done;
+        if (n > sizeof buf / 4) n = sizeof buf / 4;
+        for (size_t i = 0; i < n; i++) float_to_le(g->data[done + i], buf + 4 * i);
+        if (fwrite(buf, 4, n, (FILE *)f.fp) != n) {
+            lu_atomic_abort(&f);
+            return lu_fail(err, LU_ERR_IO, "%s: write failed: %s", path, strerror(errno));
+        }
+        done += n;
+    }
+    return lu_atomic_commit(&f, err);
+}
