@@ -7,7 +7,6 @@
 #ifndef LU_FUZZ_IMAGE_LOAD_H
 #define LU_FUZZ_IMAGE_LOAD_H
 
-#define _POSIX_C_SOURCE 200809L
 #include <lucent/image.h>
 
 #include <stdint.h>

@@ -1,4 +1,3 @@
-#define _GNU_SOURCE
 /* Density grids: trilinear sampling, raw and NanoVDB files, procedural
  * generators. Expected numbers come from closed forms (multilinear
  * reproduction, sphere/Gaussian/torus volumes), an independent GL_LINEAR

@@ -657,7 +657,7 @@ lu_result lu_scene_load_string(const char *json, const char *base_path, lu_scene
     parse_ctx c = {file, err};
     size_t len = strlen(json);
     const char *end = NULL;
-    cJSON *root = cJSON_ParseWithLengthOpts(json, len, &end, true);
+    cJSON *root = cJSON_ParseWithLengthOpts(json, len + 1, &end, true); /* length includes the NUL it requires */
     if (!root) {
         size_t off = end && end >= json ? (size_t)(end - json) : 0;
         int line, col;

@@ -17,10 +17,10 @@ expect() {
   if [[ $rc -ne $code ]]; then
     echo "FAIL: '$*' exited $rc, expected $code; stderr: $(cat "$tmp/err")"
     fail=1
-  elif ! grep -qF -- "$needle" "$tmp/err"; then
+  elif [[ -n $needle ]] && ! grep -qF -- "$needle" "$tmp/err"; then
     echo "FAIL: '$*' stderr lacks '$needle': $(cat "$tmp/err")"
     fail=1
-  elif [[ $code -ne 0 && $(wc -l <"$tmp/err") -gt 2 ]]; then
+  elif [[ $code -eq 1 && $(wc -l <"$tmp/err") -gt 1 ]]; then
     echo "FAIL: '$*' printed more than one error line: $(cat "$tmp/err")"
     fail=1
   fi
