@@ -1,7 +1,7 @@
 /* lucent/math.h — 3-vectors, affine maps, boxes, rays.
  *
  * The same function names (lu_v3_add, lu_v3_dot, ...) are defined for GLSL in
- * src/kernels/lu_prelude_glsl.glsl, so kernel headers written against them
+ * src/kernels/lu_kernel.h (its GLSL branch), so kernel headers written against them
  * compile for both backends. */
 #ifndef LUCENT_MATH_H
 #define LUCENT_MATH_H

@@ -1,18 +1,25 @@
 /* lu_kernel.h — the common subset of C11 and GLSL 4.50 that kernel headers
  * are written in (the way PNanoVDB.h is one file for both).
  *
- * Rules for kernel headers (src/kernels/ (*.h)):
+ * Rules for kernel headers (the .h files in src/kernels):
  *   - include this file first; guard with #ifndef/#define (GLSL has them);
  *   - functions are declared `LU_FN float f(...)`; no pointers: use
  *     LU_INOUT(T)/LU_OUT(T) parameters, pass with LU_REF(x), read with LU_DEREF(x);
- *   - vectors are `vec3` with .x .y .z; arithmetic through lu_v3_* (math.h
- *     in C, lu_prelude.glsl in GLSL); scalars through lu_exp, lu_sqrt, ...;
+ *   - vectors are `vec3` with .x .y .z; arithmetic through lu_v3_* (lucent/math.h
+ *     in C, defined below for GLSL); scalars through lu_exp, lu_sqrt, ...;
  *   - structs: `struct lu_k_x { ... };` followed by LU_TYPEDEF(lu_k_x) (no semicolon:
  *     GLSL 4.50 rejects a lone one at global scope);
  *   - float literals with an f suffix (valid in both); no recursion, no
- *     variable-length arrays, no library calls beyond the macros below.
- * The GPU backend prepends "#version 450 core" and "#define LU_GLSL 1" and
- * resolves #include lines when it assembles a shader. */
+ *     variable-length arrays, no library calls beyond the macros below;
+ *   - no identifiers that are GLSL keywords or reserved words (`sample`,
+ *     `input`, `output`, `filter`, `common`, `partition`, `active`, `half`,
+ *     `fixed`, `long`, `short`, `unsigned`, `double`, `patch`, `smooth`, ...),
+ *     none containing `__`, none starting `gl_`;
+ *   - include other kernel headers with `#include "name.h"` (same folder);
+ *     `#include <...>` only inside `#ifndef LU_GLSL` (the assembler drops them).
+ * The GPU backend (src/backends/gpu) prepends "#version 450 core" and
+ * "#define LU_GLSL 1", resolves #include "..." lines from the sources embedded
+ * at build time (each file once) and maps compile errors back to file:line. */
 #ifndef LU_KERNEL_H
 #define LU_KERNEL_H
 
@@ -36,13 +43,37 @@
 #define lu_max max
 #define lu_sin sin
 #define lu_cos cos
-#define lu_acos acos
-#define lu_atan2 atan
 #define lu_clamp clamp
 #define lu_mix mix
 #define lu_int(x) int(x)
 #define lu_float(x) float(x)
 #define lu_isfinite(x) (!isnan(x) && !isinf(x))
+
+/* GLSL leaves atan/acos precision to the driver, and Mesa lowers them to short
+ * polynomials (measured on llvmpipe: atan(y, x) off by 3e-6, acos by 2e-4
+ * rad). These follow Cephes' atanf (three-interval reduction, degree-4
+ * polynomial in x^2; ~2e-7 relative), so both backends agree to ~1e-6. */
+float lu_glsl_atan(float x) {
+    float ax = abs(x), base = 0.0f, t = ax;
+    if (ax > 2.414213562373095f) {
+        base = 1.570796326794897f;
+        t = -1.0f / ax;
+    } else if (ax > 0.414213562373095f) {
+        base = 0.785398163397448f;
+        t = (ax - 1.0f) / (ax + 1.0f);
+    }
+    float z = t * t;
+    float p = (((8.05374449538e-2f * z - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z;
+    return sign(x) * (base + (p * t + t));
+}
+/* atan2 with C's quadrants (atan2(-0, x < 0) gives +pi here, -pi in C) */
+float lu_atan2(float y, float x) {
+    if (x == 0.0f) return y > 0.0f ? 1.570796326794897f : (y < 0.0f ? -1.570796326794897f : 0.0f);
+    float r = lu_glsl_atan(y / x);
+    if (x < 0.0f) r += y >= 0.0f ? 3.141592653589793f : -3.141592653589793f;
+    return r;
+}
+float lu_acos(float x) { return lu_atan2(sqrt((1.0f - x) * (1.0f + x)), x); }
 
 vec3 lu_v3(float x, float y, float z) { return vec3(x, y, z); }
 vec3 lu_v3s(float s) { return vec3(s); }
@@ -63,6 +94,7 @@ vec3 lu_v3_exp(vec3 a) { return exp(a); }
 float lu_v3_maxc(vec3 a) { return max(a.x, max(a.y, a.z)); }
 float lu_v3_avg(vec3 a) { return (a.x + a.y + a.z) * (1.0 / 3.0); }
 float lu_v3_get(vec3 a, int i) { return a[i]; }
+bool lu_v3_finite(vec3 a) { return !any(isnan(a)) && !any(isinf(a)); }
 
 #else
 /* ------------------------------------------------------------------- C */
