@@ -7,7 +7,7 @@
  *   3. a "track" per medium: the ray's cell pieces through the dual grid,
  *      each with the exact cubic density along it, so optical depth to any t
  *      is exact (lu_march.h);
- *   4. in-scattering by composite Simpson over each cell piece with
+ *   4. in-scattering by adaptive Simpson over each cell piece, starting from
  *      `steps` sub-intervals per voxel length; at every node an exact
  *      shadow ray per light (cell-exact optical depth through every medium,
  *      Fresnel transmittance at each boundary crossing, opaque visibility);
@@ -36,13 +36,17 @@ static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
 #include "kernels/lu_march.h"
 #include "kernels/lu_optics.h"
 
-enum { P_SPP, P_STEPS, P_ENV_SAMPLES, P_COUNT };
+enum { P_SPP, P_STEPS, P_TOLERANCE, P_MAX_DEPTH, P_ENV_SAMPLES, P_COUNT };
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_SPP] = {"spp", LU_PARAM_INT, 1, 1, 4096, NULL,
                "samples per pixel (1 = through the pixel centre; more = R2-sequence supersampling)"},
-    [P_STEPS] = {"steps", LU_PARAM_FLOAT, 2, 0.25, 64, NULL,
-                 "Simpson sub-intervals of in-scattering per voxel length (transmittance is exact regardless)"},
+    [P_STEPS] = {"steps", LU_PARAM_FLOAT, 1, 0.25, 64, NULL,
+                 "initial Simpson sub-intervals of in-scattering per voxel length (transmittance is exact regardless)"},
+    [P_TOLERANCE] = {"tolerance", LU_PARAM_FLOAT, 1e-3, 1e-7, 0.5, NULL,
+                     "adaptive Simpson: relative agreement of halved and whole estimates per sub-interval"},
+    [P_MAX_DEPTH] = {"max_depth", LU_PARAM_INT, 10, 0, 24, NULL,
+                     "adaptive Simpson: most halvings of a sub-interval (shadow edges refine to 2^-depth)"},
     [P_ENV_SAMPLES] = {"env_samples", LU_PARAM_INT, 256, 1, 65536, NULL,
                        "directions per point for environment lights (spherical Fibonacci, rotated per pixel)"},
 };
@@ -81,8 +85,8 @@ typedef struct thread_scratch {
 } thread_scratch;
 
 typedef struct ref_state {
-    int spp, env_samples;
-    float steps;
+    int spp, env_samples, max_depth;
+    float steps, tolerance;
     lu_accel *opaque;          /* diffuse objects */
     int *opaque_object;        /* accel mesh id -> object index */
     medium_info *media;
@@ -381,6 +385,55 @@ static lu_vec3 camera_transmittance(ref_state *st, thread_scratch *ts, float t) 
     return lu_v3_exp(lu_v3_neg(tau));
 }
 
+/* ---- in-scattering quadrature ------------------------------------------------------
+ * f(t) = T_camera(t) * D(t) * source(x(t)) is smooth inside a cell piece except
+ * where a shadow edge or a spot cone crosses the ray; there Simpson's order
+ * collapses, so each sub-interval is refined adaptively until the halved
+ * estimate agrees with the whole to `tolerance` (relative), with Richardson's
+ * correction, down to 2^-max_depth of the sub-interval. */
+
+typedef struct integrand {
+    ref_state *st;
+    thread_scratch *ts;
+    int m;
+    lu_vec3 o, d;
+    float phi0;
+    const piece *p;
+} integrand;
+
+static lu_vec3 integrand_eval(const integrand *f, float t) {
+    const piece *p = f->p;
+    float len = p->tb - p->ta;
+    float dens = lu_k_cubic_eval(p->density, len > 0.0f ? (t - p->ta) / len : 0.0f);
+    if (dens <= 0.0f) return lu_v3s(0.0f);
+    /* A node on a boundary face is the limit from inside: evaluating it a hair
+     * inside keeps that face's crossing (and its Fresnel factor) on the shadow
+     * ray instead of at t = 0, where it would be neither in nor out. */
+    float e = f->st->eps;
+    float tx = len > 4.0f * e ? fminf(fmaxf(t, p->ta + e), p->tb - e) : t;
+    lu_vec3 src = inscatter_source(f->st, f->ts, f->m, lu_v3_madd(f->o, f->d, tx), f->d, f->phi0);
+    return lu_v3_scale(lu_v3_mul(camera_transmittance(f->st, f->ts, t), src), dens);
+}
+
+static lu_vec3 simpson3(float len, lu_vec3 fa, lu_vec3 fm, lu_vec3 fb) {
+    return lu_v3_scale(lu_v3_add(lu_v3_add(fa, fb), lu_v3_scale(fm, 4.0f)), len * (1.0f / 6.0f));
+}
+
+static lu_vec3 adaptive_simpson(const integrand *f, float a, lu_vec3 fa, float m, lu_vec3 fm, float b, lu_vec3 fb,
+                                lu_vec3 whole, int depth) {
+    float lm = 0.5f * (a + m), rm = 0.5f * (m + b);
+    lu_vec3 flm = integrand_eval(f, lm), frm = integrand_eval(f, rm);
+    lu_vec3 left = simpson3(m - a, fa, flm, fm), right = simpson3(b - m, fm, frm, fb);
+    lu_vec3 halves = lu_v3_add(left, right);
+    lu_vec3 diff = lu_v3_sub(halves, whole);
+    float err = fmaxf(fabsf(diff.x), fmaxf(fabsf(diff.y), fabsf(diff.z)));
+    float scale = fmaxf(fabsf(halves.x), fmaxf(fabsf(halves.y), fabsf(halves.z)));
+    if (depth <= 0 || err <= 15.0f * f->st->tolerance * scale || err <= 1e-12f)
+        return lu_v3_madd(halves, diff, 1.0f / 15.0f);
+    return lu_v3_add(adaptive_simpson(f, a, fa, lm, flm, m, fm, left, depth - 1),
+                     adaptive_simpson(f, m, fm, rm, frm, b, fb, right, depth - 1));
+}
+
 /* ---- one camera ray ----------------------------------------------------------- */
 
 static lu_vec3 trace(ref_state *st, thread_scratch *ts, lu_vec3 o, lu_vec3 d, float phi0) {
@@ -410,33 +463,32 @@ static lu_vec3 trace(ref_state *st, thread_scratch *ts, lu_vec3 o, lu_vec3 d, fl
         }
     }
 
-    /* In-scattering: composite Simpson over each cell piece. */
+    /* In-scattering: adaptive Simpson over each cell piece. */
     for (int m = 0; m < st->medium_count; m++) {
         const track *tr = &ts->tracks[m];
         const lu_medium *med = &s->media[m];
         if (lu_v3_maxc(med->sigma_s) <= 0.0f) continue;
         lu_vec3 di_len = lu_affine_vector(&med->world_to_index, d);
         float index_per_t = med->kind == LU_DENSITY_CONSTANT ? 1.0f / st->media[m].voxel_len : lu_v3_len(di_len);
+        integrand fn = {st, ts, m, o, d, phi0, NULL};
         lu_vec3 acc = lu_v3s(0.0f);
         for (int i = 0; i < tr->count; i++) {
             const piece *p = &tr->pieces[i];
+            fn.p = p;
             float len = p->tb - p->ta;
             int k = (int)ceilf(len * index_per_t * st->steps);
             if (k < 1) k = 1;
-            int nodes = 2 * k;
-            lu_vec3 sum = lu_v3s(0.0f);
-            for (int j = 0; j <= nodes; j++) {
-                float sj = (float)j / (float)nodes;
-                float dens = lu_k_cubic_eval(p->density, sj);
-                if (dens <= 0.0f) continue;
-                float t = p->ta + len * sj;
-                lu_vec3 x = lu_v3_madd(o, d, t);
-                lu_vec3 src = inscatter_source(st, ts, m, x, d, phi0);
-                lu_vec3 f = lu_v3_scale(lu_v3_mul(camera_transmittance(st, ts, t), src), dens);
-                float w = (j == 0 || j == nodes) ? 1.0f : ((j & 1) ? 4.0f : 2.0f);
-                sum = lu_v3_madd(sum, f, w);
+            float a = p->ta;
+            lu_vec3 fa = integrand_eval(&fn, a);
+            for (int j = 1; j <= k; j++) {
+                float b = j == k ? p->tb : p->ta + len * (float)j / (float)k;
+                float mid = 0.5f * (a + b);
+                lu_vec3 fm = integrand_eval(&fn, mid), fb = integrand_eval(&fn, b);
+                lu_vec3 whole = simpson3(b - a, fa, fm, fb);
+                acc = lu_v3_add(acc, adaptive_simpson(&fn, a, fa, mid, fm, b, fb, whole, st->max_depth));
+                a = b;
+                fa = fb;
             }
-            acc = lu_v3_madd(acc, sum, len / (3.0f * (float)nodes));
         }
         L = lu_v3_add(L, lu_v3_mul(acc, med->sigma_s));
     }
@@ -525,6 +577,8 @@ static lu_result ref_prepare(const lu_scene *scene, const double *params, lu_bac
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
     st->spp = (int)params[P_SPP];
     st->steps = (float)params[P_STEPS];
+    st->tolerance = (float)params[P_TOLERANCE];
+    st->max_depth = (int)params[P_MAX_DEPTH];
     st->env_samples = (int)params[P_ENV_SAMPLES];
     lu_result r = LU_OK;
 
