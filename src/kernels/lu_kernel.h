@@ -28,6 +28,7 @@
 #define LU_FN
 #define LU_INOUT(T) inout T
 #define LU_OUT(T) out T
+#define LU_OUT_ARRAY(T) out T   /* LU_OUT_ARRAY(float) y[36]: an array filled by the callee */
 #define LU_REF(x) x
 #define LU_DEREF(x) x
 #define LU_TYPEDEF(name)
@@ -106,6 +107,7 @@ bool lu_v3_finite(vec3 a) { return !any(isnan(a)) && !any(isinf(a)); }
 #define LU_FN static inline
 #define LU_INOUT(T) T *
 #define LU_OUT(T) T *
+#define LU_OUT_ARRAY(T) T       /* arrays are passed by pointer in C anyway */
 #define LU_REF(x) (&(x))
 #define LU_DEREF(x) (*(x))
 #define LU_TYPEDEF(name) typedef struct name name;
