@@ -15,6 +15,7 @@ static const char k_usage[] =
     "  bench SCENE.json --methods a,b,...                   time methods, error against the reference\n"
     "  info FILE                                            summarise a scene, mesh, grid or image\n"
     "  methods                                              list methods and their parameters\n"
+    "  profile --preset NAME                                diffusion profile of a translucent material\n"
     "\n"
     "Every command takes --help. Exit codes: 0 success, 1 failure (bad input, failed\n"
     "render; one line on stderr says why), 2 usage error, 3 a --max-* threshold exceeded.\n";
@@ -102,7 +103,7 @@ int main(int argc, char **argv) {
         const char *name;
         int (*fn)(int, char **);
     } cmds[] = {{"render", lu_cmd_render}, {"compare", lu_cmd_compare}, {"bench", lu_cmd_bench},
-                {"info", lu_cmd_info},     {"methods", lu_cmd_methods}};
+                {"info", lu_cmd_info},     {"methods", lu_cmd_methods}, {"profile", lu_cmd_profile}};
     for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++)
         if (strcmp(argv[1], cmds[i].name) == 0) return cmds[i].fn(argc - 1, argv + 1);
     fprintf(stderr, "lucent: unknown command \"%s\"\n\n%s", argv[1], k_usage);

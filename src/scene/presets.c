@@ -33,3 +33,8 @@ const lu_material_preset *lu_material_preset_find(const char *name) {
         if (strcasecmp(all[i].name, name) == 0) return &all[i];
     return NULL;
 }
+
+float lu_sigma_a_from_ior_imag(float k, float lambda_nm) {
+    /* lambda in mm = lambda_nm * 1e-6 */
+    return 4.0f * LU_PI * k / (lambda_nm * 1e-6f);
+}

@@ -241,6 +241,59 @@ static lu_result parse_mesh_source(parse_ctx *c, const cJSON *parent, const jpat
     return r;
 }
 
+/* Scattering coefficients per millimetre of a translucent material or coating:
+ * a preset, overridden by explicit "sigma_s" / "sigma_a", or absorption from
+ * the imaginary part of a complex index ("eta_imag", optional
+ * "wavelengths_nm", default 700, 550, 425 as in Rohat 2011, Table 4.3). */
+static lu_result parse_scattering(parse_ctx *c, const cJSON *m, const jpath *mp, lu_vec3 *ss, lu_vec3 *sa, float *eta,
+                                  float *g, char *preset_out, size_t preset_size) {
+    const char *preset;
+    TRY(get_string(c, m, mp, "preset", false, &preset));
+    *ss = lu_v3s(1.0f);
+    *sa = lu_v3s(0.01f);
+    preset_out[0] = 0;
+    bool has_imag = cJSON_HasObjectItem(m, "eta_imag");
+    if (preset) {
+        const lu_material_preset *mpre = lu_material_preset_find(preset);
+        if (!mpre) {
+            jpath pp = jp_key(mp, "preset");
+            char names[400] = "";
+            int n;
+            const lu_material_preset *all = lu_material_presets(&n);
+            size_t used = 0;
+            for (int i = 0; i < n && used + 1 < sizeof names; i++)
+                used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "", all[i].name);
+            return scene_fail(c, &pp, LU_ERR_SCENE, "unknown preset \"%s\" (known: %s)", preset, names);
+        }
+        snprintf(preset_out, preset_size, "%s", mpre->name);
+        *ss = lu_v3(mpre->sigma_s_prime[0], mpre->sigma_s_prime[1], mpre->sigma_s_prime[2]);
+        *sa = lu_v3(mpre->sigma_a[0], mpre->sigma_a[1], mpre->sigma_a[2]);
+        *eta = mpre->eta;
+    } else if (!cJSON_HasObjectItem(m, "sigma_s") || !(cJSON_HasObjectItem(m, "sigma_a") || has_imag)) {
+        return scene_fail(c, mp, LU_ERR_SCENE,
+                          "a translucent material needs \"preset\" or \"sigma_s\" with \"sigma_a\" or \"eta_imag\"");
+    }
+    if (has_imag && cJSON_HasObjectItem(m, "sigma_a"))
+        return scene_fail(c, mp, LU_ERR_SCENE, "give either \"sigma_a\" or \"eta_imag\", not both");
+    if (!has_imag && cJSON_HasObjectItem(m, "wavelengths_nm")) {
+        jpath wp = jp_key(mp, "wavelengths_nm");
+        return scene_fail(c, &wp, LU_ERR_SCENE, "only meaningful with \"eta_imag\"");
+    }
+    /* Explicit coefficients override the preset; both are per millimetre. */
+    TRY(get_vec3(c, m, mp, "sigma_s", *ss, 0, 1e6, false, true, ss));
+    TRY(get_vec3(c, m, mp, "sigma_a", *sa, 0, 1e6, false, true, sa));
+    if (has_imag) {
+        lu_vec3 k, lambda;
+        TRY(get_vec3(c, m, mp, "eta_imag", lu_v3s(0), 0, 1, true, true, &k));
+        TRY(get_vec3(c, m, mp, "wavelengths_nm", lu_v3(700, 550, 425), 100, 10000, false, false, &lambda));
+        *sa = lu_v3(lu_sigma_a_from_ior_imag(k.x, lambda.x), lu_sigma_a_from_ior_imag(k.y, lambda.y),
+                    lu_sigma_a_from_ior_imag(k.z, lambda.z));
+    }
+    TRY(get_float(c, m, mp, "eta", *eta, 1.0, 4.0, false, eta));
+    TRY(get_float(c, m, mp, "g", 0.0, -0.99, 0.99, false, g));
+    return LU_OK;
+}
+
 static lu_result parse_material(parse_ctx *c, const cJSON *parent, const jpath *p, const char *key,
                                 lu_material *out) {
     memset(out, 0, sizeof *out);
@@ -253,8 +306,9 @@ static lu_result parse_material(parse_ctx *c, const cJSON *parent, const jpath *
     const cJSON *m = cJSON_GetObjectItemCaseSensitive(parent, key);
     if (!m) return LU_OK;
     jpath mp = jp_key(p, key);
-    static const char *const keys[] = {"type", "albedo", "specular", "shininess", "preset", "sigma_s", "sigma_a",
-                                       "eta", "g", "mm_per_unit", NULL};
+    static const char *const keys[] = {"type",     "albedo",         "specular", "shininess", "preset",
+                                       "sigma_s",  "sigma_a",        "eta_imag", "wavelengths_nm", "eta",
+                                       "g",        "mm_per_unit",    "coatings", NULL};
     TRY(check_object(c, m, &mp, keys));
     const char *type;
     TRY(get_string(c, m, &mp, "type", false, &type));
@@ -270,41 +324,43 @@ static lu_result parse_material(parse_ctx *c, const cJSON *parent, const jpath *
         jpath tp = jp_key(&mp, "type");
         return scene_fail(c, &tp, LU_ERR_SCENE, "unknown material type \"%s\" (diffuse, translucent)", type);
     }
-    static const char *const tkeys[] = {"type", "preset", "sigma_s", "sigma_a", "eta", "g", "mm_per_unit",
-                                        "specular", "shininess", NULL};
+    static const char *const tkeys[] = {"type", "preset", "sigma_s", "sigma_a", "eta_imag", "wavelengths_nm", "eta",
+                                        "g", "mm_per_unit", "specular", "shininess", "coatings", NULL};
     TRY(check_object(c, m, &mp, tkeys));
     out->type = LU_MATERIAL_TRANSLUCENT;
     out->albedo = lu_v3s(0.0f);
-    const char *preset;
-    TRY(get_string(c, m, &mp, "preset", false, &preset));
-    lu_vec3 ss = lu_v3s(1.0f), sa = lu_v3s(0.01f);
-    if (preset) {
-        const lu_material_preset *mpre = lu_material_preset_find(preset);
-        if (!mpre) {
-            jpath pp = jp_key(&mp, "preset");
-            char names[400] = "";
-            int n;
-            const lu_material_preset *all = lu_material_presets(&n);
-            size_t used = 0;
-            for (int i = 0; i < n && used + 1 < sizeof names; i++)
-                used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "", all[i].name);
-            return scene_fail(c, &pp, LU_ERR_SCENE, "unknown preset \"%s\" (known: %s)", preset, names);
-        }
-        snprintf(out->preset, sizeof out->preset, "%s", mpre->name);
-        ss = lu_v3(mpre->sigma_s_prime[0], mpre->sigma_s_prime[1], mpre->sigma_s_prime[2]);
-        sa = lu_v3(mpre->sigma_a[0], mpre->sigma_a[1], mpre->sigma_a[2]);
-        out->eta = mpre->eta;
-    } else if (!cJSON_HasObjectItem(m, "sigma_s") || !cJSON_HasObjectItem(m, "sigma_a")) {
-        return scene_fail(c, &mp, LU_ERR_SCENE, "a translucent material needs \"preset\" or both \"sigma_s\" and \"sigma_a\"");
-    }
-    /* Explicit coefficients override the preset; both are per millimetre. */
-    TRY(get_vec3(c, m, &mp, "sigma_s", ss, 0, 1e6, false, true, &ss));
-    TRY(get_vec3(c, m, &mp, "sigma_a", sa, 0, 1e6, false, true, &sa));
-    TRY(get_float(c, m, &mp, "eta", out->eta, 1.0, 4.0, false, &out->eta));
-    TRY(get_float(c, m, &mp, "g", 0.0, -0.99, 0.99, false, &out->g));
+    lu_vec3 ss, sa;
+    TRY(parse_scattering(c, m, &mp, &ss, &sa, &out->eta, &out->g, out->preset, sizeof out->preset));
     TRY(get_float(c, m, &mp, "mm_per_unit", 1.0, 1e-6, 1e6, false, &out->mm_per_unit));
     TRY(get_vec3(c, m, &mp, "specular", lu_v3s(1.0f), 0, 1, false, true, &out->specular));
     TRY(get_float(c, m, &mp, "shininess", 64.0, 1, 1e5, false, &out->shininess));
+    const cJSON *coats = cJSON_GetObjectItemCaseSensitive(m, "coatings");
+    if (coats) {
+        jpath cp = jp_key(&mp, "coatings");
+        if (!cJSON_IsArray(coats)) return scene_fail(c, &cp, LU_ERR_SCENE, "expected an array");
+        if (cJSON_GetArraySize(coats) > LU_MAX_COATINGS)
+            return scene_fail(c, &cp, LU_ERR_LIMIT, "%d coatings exceed the limit of %d", cJSON_GetArraySize(coats),
+                              LU_MAX_COATINGS);
+        int i = 0;
+        for (const cJSON *it = coats->child; it; it = it->next, i++) {
+            jpath ip = jp_index(&cp, i);
+            if (!cJSON_IsObject(it)) return scene_fail(c, &ip, LU_ERR_SCENE, "expected an object");
+            static const char *const ckeys[] = {"preset", "sigma_s", "sigma_a", "eta_imag", "wavelengths_nm", "eta",
+                                                "g", "thickness_mm", NULL};
+            TRY(check_object(c, it, &ip, ckeys));
+            lu_coating *co = &out->coatings[i];
+            lu_vec3 css, csa;
+            char name[32];
+            co->eta = 1.3f;
+            TRY(parse_scattering(c, it, &ip, &css, &csa, &co->eta, &co->g, name, sizeof name));
+            float mm;
+            TRY(get_float(c, it, &ip, "thickness_mm", 0.0, 1e-9, 1e9, true, &mm));
+            co->sigma_s = lu_v3_scale(css, out->mm_per_unit);
+            co->sigma_a = lu_v3_scale(csa, out->mm_per_unit);
+            co->thickness = mm / out->mm_per_unit;
+            out->coating_count = i + 1;
+        }
+    }
     out->sigma_s = lu_v3_scale(ss, out->mm_per_unit);
     out->sigma_a = lu_v3_scale(sa, out->mm_per_unit);
     return LU_OK;

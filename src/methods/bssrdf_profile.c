@@ -1,0 +1,830 @@
+/* Diffusion profile tables, splat radius, multi-layer stacking by FFT, and
+ * a Monte Carlo random walk (see bssrdf_profile.h). */
+#include "methods/bssrdf_profile.h"
+
+#include <fftw3.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "kernels/lu_diffusion.h"
+#include "kernels/lu_optics.h"
+
+void lu_bssrdf_profile_desc_default(lu_bssrdf_profile_desc *d) {
+    d->model = LU_BSSRDF_DIPOLE;
+    d->table_size = 512;
+    d->thickness_steps = 32;
+    d->pairs = 10;
+    d->epsilon = 0.01;
+    d->d_min_mfp = 4.0;
+    d->d_max_mfp = 64.0;
+    d->fft_size = 512;
+}
+
+void lu_bssrdf_profile_destroy(lu_bssrdf_profile *p) {
+    if (!p) return;
+    free(p->table);
+    memset(p, 0, sizeof *p);
+}
+
+/* ---- radial functions of one channel ----------------------------------------- */
+
+typedef struct radial_ctx {
+    lu_bssrdf_model model;
+    int ch;
+    lu_k_diffusion k;
+    float d;             /* multipole thickness */
+    int pairs, transmit;
+    float burley_a, burley_h;
+} radial_ctx;
+
+static double radial_eval(const void *vctx, double r) {
+    const radial_ctx *c = vctx;
+    float s = lu_v3_get(c->k.sigma_tr, c->ch), a = lu_v3_get(c->k.alpha_p, c->ch), l = lu_v3_get(c->k.l, c->ch);
+    float zb0 = lu_v3_get(c->k.zb_top, c->ch), zbd = lu_v3_get(c->k.zb_bottom, c->ch);
+    switch (c->model) {
+    case LU_BSSRDF_DIPOLE: return lu_k_dipole1((float)r, s, a, l, zb0);
+    case LU_BSSRDF_MULTIPOLE: return lu_k_multipole1((float)r, c->d, c->pairs, c->transmit, s, a, l, zb0, zbd);
+    case LU_BSSRDF_BURLEY: return r > 0.0 ? lu_k_burley1((float)r, c->burley_a, c->burley_h) : 0.0;
+    }
+    return 0.0;
+}
+
+/* Simpson in t = ln r of 2 pi r^2 f(e^t); r_max is where what lies beyond
+ * drops below eps times ref (ref <= 0: times the total). The
+ * crossing is interpolated linearly within the Simpson panel. */
+static double eps_radius_ref(lu_bssrdf_radial_fn f, const void *ctx, double r_lo, double r_hi, int n, double eps,
+                             double ref, double *total) {
+    if (n < 2) n = 2;
+    if (n & 1) n++;
+    double t0 = log(r_lo), t1 = log(r_hi), h = (t1 - t0) / n;
+    double *cum = malloc((size_t)(n / 2 + 1) * sizeof *cum);
+    if (!cum) {
+        *total = 0.0;
+        return r_hi;
+    }
+    cum[0] = 0.0;
+    double fa = 2.0 * M_PI * r_lo * r_lo * f(ctx, r_lo);
+    for (int i = 0; i < n / 2; i++) {
+        double rm = exp(t0 + (2 * i + 1) * h), rb = exp(t0 + (2 * i + 2) * h);
+        double fm = 2.0 * M_PI * rm * rm * f(ctx, rm), fb = 2.0 * M_PI * rb * rb * f(ctx, rb);
+        cum[i + 1] = cum[i] + h / 3.0 * (fa + 4.0 * fm + fb);
+        fa = fb;
+    }
+    *total = cum[n / 2];
+    double target = *total - eps * (ref > 0.0 ? ref : *total);
+    double r_max = r_hi;
+    for (int i = 0; i < n / 2; i++) {
+        if (cum[i + 1] >= target) {
+            double a = exp(t0 + 2 * i * h), b = exp(t0 + (2 * i + 2) * h);
+            double w = cum[i + 1] > cum[i] ? (target - cum[i]) / (cum[i + 1] - cum[i]) : 1.0;
+            r_max = a + (b - a) * fmin(fmax(w, 0.0), 1.0);
+            break;
+        }
+    }
+    free(cum);
+    return r_max;
+}
+
+double lu_bssrdf_eps_radius(lu_bssrdf_radial_fn f, const void *ctx, double r_lo, double r_hi, int n, double eps,
+                            double *total) {
+    return eps_radius_ref(f, ctx, r_lo, r_hi, n, eps, 0.0, total);
+}
+
+/* Integration range of a channel: from far inside the source depth to where
+ * e^{-sigma_tr r} is negligible, or a power law has dropped by 1e-7. */
+static void radial_range(float l, float s, double *r_lo, double *r_hi) {
+    *r_lo = 1e-5 * l;
+    double far_power = 1e7 * l;
+    *r_hi = s > 0.0f ? fmin(far_power, 60.0 * l + 45.0 / s) : far_power;
+}
+
+/* ---- closed forms --------------------------------------------------------------- */
+
+void lu_bssrdf_slab_totals(double sigma_sp, double sigma_a, double eta_top, double eta_bottom, double d, double *r_total,
+                           double *t_total) {
+    double st = sigma_sp + sigma_a, alpha = sigma_sp / st, l = 1.0 / st, D = l / 3.0;
+    double s = sqrt(3.0 * sigma_a * st);
+    double zb0 = 2.0 * lu_k_diffusion_a((float)eta_top) * D, zbd = 2.0 * lu_k_diffusion_a((float)eta_bottom) * D;
+    if (!isfinite(d)) {
+        *r_total = 0.5 * alpha * (exp(-s * l) + exp(-s * (l + 2.0 * zb0)));
+        *t_total = 0.0;
+        return;
+    }
+    /* The plane-integrated fluence solves Phi'' - s^2 Phi = -(alpha'/D) delta(z - l)
+     * with Phi = 0 at the extrapolated faces; with x = z + zb0, L = d + zb0 + zbd,
+     * x0 = l + zb0 the reflected flux D Phi'(zb0) and transmitted -D Phi'(zb0 + d)
+     * are below (the multipole series is this Green's function by images). */
+    double L = d + zb0 + zbd, x0 = l + zb0;
+    if (s * L < 1e-6) { /* sigma_a -> 0: the linear Green's function */
+        *r_total = alpha * (L - x0) / L;
+        *t_total = alpha * x0 / L;
+        return;
+    }
+    /* Ratios of sinh written with exponentials so large s L cannot overflow. */
+    double e2L = exp(-2.0 * s * L);
+    double rr = cosh(s * zb0) * exp(-s * x0) * (1.0 - exp(-2.0 * s * (L - x0))) / (1.0 - e2L);
+    double tt = cosh(s * zbd) * exp(-s * (L - x0)) * (1.0 - exp(-2.0 * s * x0)) / (1.0 - e2L);
+    *r_total = alpha * rr;
+    *t_total = alpha * tt;
+}
+
+/* ---- table helpers ------------------------------------------------------------------ */
+
+/* Entry i of an n-entry table sits at r = r_max (i / (n - 1))^2: the
+ * square-root spacing puts most entries where the profile is steep (its
+ * peak is about one mean free path wide, r_max often hundreds). */
+static double table_r(int i, int n, double r_max) {
+    double x = (double)i / (n - 1);
+    return r_max * x * x;
+}
+
+/* Integral of 2 pi r f(r) over [0, r_max] for f linear in the table
+ * coordinate between entries (how the renderer interpolates): Gauss-Legendre
+ * with 3 nodes per segment, exact for the degree-5 integrand. */
+static double table_total(const float *t, int n, double r_max, int ch) {
+    static const double gx[3] = {-0.7745966692414834, 0.0, 0.7745966692414834};
+    static const double gw[3] = {5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0};
+    double sum = 0.0, hx = 1.0 / (n - 1);
+    for (int i = 0; i + 1 < n; i++) {
+        for (int q = 0; q < 3; q++) {
+            double w = 0.5 * (1.0 + gx[q]);        /* position within the segment */
+            double x = (i + w) * hx;               /* table coordinate in [0, 1] */
+            double r = r_max * x * x, drdx = 2.0 * r_max * x;
+            double f = t[3 * i + ch] * (1.0 - w) + t[3 * (i + 1) + ch] * w;
+            sum += 0.5 * hx * gw[q] * r * f * drdx;
+        }
+    }
+    return 2.0 * M_PI * sum;
+}
+
+static float table_lerp(const float *t, int n, float r_max, float r, int ch) {
+    if (!(r < r_max) || r < 0.0f) return 0.0f;
+    float x = sqrtf(r / r_max) * (float)(n - 1);
+    int i = (int)x;
+    if (i >= n - 1) return t[3 * (n - 1) + ch];
+    float w = x - (float)i;
+    return t[3 * i + ch] * (1.0f - w) + t[3 * (i + 1) + ch] * w;
+}
+
+lu_vec3 lu_bssrdf_profile_eval(const lu_bssrdf_profile *p, float r, float d, int transmit) {
+    float out[3];
+    if (p->kind == 0) {
+        for (int c = 0; c < 3; c++) out[c] = transmit ? 0.0f : table_lerp(p->table, p->nr, p->r_max, r, c);
+        return lu_v3(out[0], out[1], out[2]);
+    }
+    float y = p->nd > 1 ? logf(fmaxf(d, p->d_lo) / p->d_lo) / logf(p->d_hi / p->d_lo) * (float)(p->nd - 1) : 0.0f;
+    y = fminf(fmaxf(y, 0.0f), (float)(p->nd - 1));
+    int j = (int)y;
+    if (j >= p->nd - 1) j = p->nd > 1 ? p->nd - 2 : 0;
+    float w = p->nd > 1 ? y - (float)j : 0.0f;
+    const float *block = p->table + (size_t)(transmit ? 3 * p->nr * p->nd : 0);
+    for (int c = 0; c < 3; c++) {
+        float a = table_lerp(block + (size_t)3 * p->nr * j, p->nr, p->r_max, r, c);
+        float b = p->nd > 1 ? table_lerp(block + (size_t)3 * p->nr * (j + 1), p->nr, p->r_max, r, c) : a;
+        out[c] = a * (1.0f - w) + b * w;
+    }
+    return lu_v3(out[0], out[1], out[2]);
+}
+
+static float row_thickness(const lu_bssrdf_profile *p, int j) {
+    return p->nd > 1 ? p->d_lo * powf(p->d_hi / p->d_lo, (float)j / (float)(p->nd - 1)) : p->d_lo;
+}
+
+/* ---- single layer --------------------------------------------------------------------- */
+
+static lu_k_diffusion layer_diffusion(const lu_bssrdf_layer *layers, int count, int i) {
+    float above = i == 0 ? 1.0f : layers[i - 1].eta, below = i + 1 < count ? layers[i + 1].eta : 1.0f;
+    return lu_k_diffusion_make(layers[i].sigma_sp, layers[i].sigma_a, layers[i].eta / above, layers[i].eta / below);
+}
+
+static lu_result build_1d(const lu_bssrdf_layer *layer, const lu_bssrdf_profile_desc *desc, lu_bssrdf_profile *p,
+                          lu_error *err) {
+    radial_ctx ctx = {0};
+    ctx.model = desc->model;
+    ctx.k = layer_diffusion(layer, 1, 0);
+    double r_max = 0.0;
+    float burley_h[3], burley_a[3];
+    for (int c = 0; c < 3; c++) {
+        float s = lu_v3_get(ctx.k.sigma_tr, c), l = lu_v3_get(ctx.k.l, c);
+        float a = lu_v3_get(ctx.k.alpha_p, c), zb = lu_v3_get(ctx.k.zb_top, c);
+        double r_lo, r_hi;
+        radial_range(l, s, &r_lo, &r_hi);
+        ctx.ch = c;
+        if (desc->model == LU_BSSRDF_BURLEY) {
+            /* Matched to the dipole's total; the diffuse mean free path 1/sigma_tr
+             * is floored at 1000 mfp for non-absorbing media, where it is infinite. */
+            burley_a[c] = lu_k_dipole_total1(s, a, l, zb);
+            float ell = s > 1e-3f / l ? 1.0f / s : 1e3f * l;
+            burley_h[c] = ell / lu_k_burley_shape(burley_a[c]);
+            ctx.burley_a = burley_a[c];
+            ctx.burley_h = burley_h[c];
+            r_hi = 60.0 * burley_h[c];
+            p->total_closed[c] = burley_a[c];
+        } else {
+            p->total_closed[c] = lu_k_dipole_total1(s, a, l, zb);
+        }
+        double total;
+        double rc = lu_bssrdf_eps_radius(radial_eval, &ctx, r_lo, r_hi, 4096, desc->epsilon, &total);
+        p->total_numeric[c] = total;
+        if (rc > r_max) r_max = rc;
+    }
+    p->kind = 0;
+    p->nr = desc->table_size;
+    p->nd = 1;
+    p->r_max = (float)r_max;
+    p->table = malloc((size_t)3 * p->nr * sizeof *p->table);
+    if (!p->table) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the profile table");
+    for (int i = 0; i < p->nr; i++) {
+        for (int c = 0; c < 3; c++) {
+            ctx.ch = c;
+            ctx.burley_a = desc->model == LU_BSSRDF_BURLEY ? burley_a[c] : 0.0f;
+            ctx.burley_h = desc->model == LU_BSSRDF_BURLEY ? burley_h[c] : 1.0f;
+            /* Burley is singular at 0: the first entry holds its value at a
+             * third of the first step (where 2 pi r f matches its segment mean). */
+            double r = i == 0 && desc->model == LU_BSSRDF_BURLEY ? table_r(1, p->nr, r_max) / 3.0
+                                                                 : table_r(i, p->nr, r_max);
+            p->table[3 * i + c] = (float)radial_eval(&ctx, r);
+        }
+    }
+    for (int c = 0; c < 3; c++) p->total_table[c] = table_total(p->table, p->nr, r_max, c);
+    return LU_OK;
+}
+
+static lu_result build_multipole(const lu_bssrdf_layer *layer, const lu_bssrdf_profile_desc *desc,
+                                 lu_bssrdf_profile *p, lu_error *err) {
+    radial_ctx ctx = {0};
+    ctx.model = LU_BSSRDF_MULTIPOLE;
+    ctx.k = layer_diffusion(layer, 1, 0);
+    ctx.pairs = desc->pairs;
+    p->kind = 1;
+    p->nr = desc->table_size;
+    p->nd = desc->thickness_steps;
+    p->d_lo = (float)(desc->d_min_mfp * p->mfp);
+    p->d_hi = (float)(desc->d_max_mfp * p->mfp);
+    double r_max = 0.0;
+    for (int j = 0; j < p->nd; j++) {
+        ctx.d = row_thickness(p, j);
+        for (int c = 0; c < 3; c++) {
+            ctx.ch = c;
+            float s = lu_v3_get(ctx.k.sigma_tr, c), l = lu_v3_get(ctx.k.l, c);
+            double r_lo, r_hi, rt, tt;
+            radial_range(l, s, &r_lo, &r_hi);
+            ctx.transmit = 0;
+            double rr = eps_radius_ref(radial_eval, &ctx, r_lo, r_hi, 1024, desc->epsilon, 0.0, &rt);
+            ctx.transmit = 1;
+            /* Transmission that carries almost nothing must not widen every splat. */
+            double ref = 0.0, tdummy;
+            lu_bssrdf_slab_totals(lu_v3_get(layer->sigma_sp, c), lu_v3_get(layer->sigma_a, c), layer->eta, layer->eta,
+                                  ctx.d, &ref, &tdummy);
+            double rtr = eps_radius_ref(radial_eval, &ctx, r_lo, r_hi, 1024, desc->epsilon, fmax(ref, tdummy), &tt);
+            if (tt < desc->epsilon * fmax(ref, tdummy)) rtr = 0.0;
+            r_max = fmax(r_max, fmax(rr, rtr));
+            if (j == p->nd - 1) {
+                p->total_numeric[c] = rt;
+                p->total_closed[c] = ref;
+            }
+        }
+    }
+    p->r_max = (float)r_max;
+    p->table = malloc((size_t)6 * p->nr * p->nd * sizeof *p->table);
+    if (!p->table) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the profile tables");
+    for (int t = 0; t < 2; t++) {
+        ctx.transmit = t;
+        for (int j = 0; j < p->nd; j++) {
+            ctx.d = row_thickness(p, j);
+            float *row = p->table + (size_t)3 * p->nr * (t * p->nd + j);
+            for (int i = 0; i < p->nr; i++) {
+                vec3 v = lu_k_multipole(ctx.k, (float)table_r(i, p->nr, r_max), ctx.d, ctx.pairs, t);
+                row[3 * i] = v.x;
+                row[3 * i + 1] = v.y;
+                row[3 * i + 2] = v.z;
+            }
+        }
+    }
+    const float *thick_row = p->table + (size_t)3 * p->nr * (p->nd - 1);
+    for (int c = 0; c < 3; c++) p->total_table[c] = table_total(thick_row, p->nr, r_max, c);
+    return LU_OK;
+}
+
+/* ---- frequency-domain stacking ----------------------------------------------------------- */
+
+struct lu_bssrdf_spectra {
+    int g;
+    double h;
+    fftwf_complex *r_top, *r_bottom, *t;   /* g x (g/2 + 1) each */
+};
+
+void lu_bssrdf_spectra_destroy(lu_bssrdf_spectra *s) {
+    if (!s) return;
+    fftwf_free(s->r_top);
+    fftwf_free(s->r_bottom);
+    fftwf_free(s->t);
+    free(s);
+}
+
+static lu_result spectra_alloc(int g, double h, lu_bssrdf_spectra **out, lu_error *err) {
+    *out = NULL;
+    if (g < 8 || g > 8192 || (g & 1)) return lu_fail(err, LU_ERR_RANGE, "bssrdf: FFT size %d must be even, in [8, 8192]", g);
+    lu_bssrdf_spectra *s = calloc(1, sizeof *s);
+    if (!s) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+    s->g = g;
+    s->h = h;
+    size_t n = (size_t)g * (size_t)(g / 2 + 1);
+    s->r_top = fftwf_malloc(n * sizeof(fftwf_complex));
+    s->r_bottom = fftwf_malloc(n * sizeof(fftwf_complex));
+    s->t = fftwf_malloc(n * sizeof(fftwf_complex));
+    if (!s->r_top || !s->r_bottom || !s->t) {
+        lu_bssrdf_spectra_destroy(s);
+        return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for %dx%d spectra", g, g);
+    }
+    *out = s;
+    return LU_OK;
+}
+
+/* Simpson (trapezoid on a leftover panel) of 2 pi r f(r), r_k = k dr. */
+static double radial_integral(const float *f, int n, double dr) {
+    double sum = 0.0;
+    int i = 0;
+    for (; i + 2 < n; i += 2)
+        sum += dr / 3.0 * (i * dr * f[i] + 4.0 * (i + 1) * dr * f[i + 1] + (i + 2) * dr * f[i + 2]);
+    if (i + 1 < n) sum += 0.5 * dr * (i * dr * f[i] + (i + 1) * dr * f[i + 1]);
+    return 2.0 * M_PI * sum;
+}
+
+static float radial_lerp(const float *f, int n, double dr, double r) {
+    double x = r / dr;
+    int i = (int)x;
+    if (i >= n - 1) return 0.0f;
+    double w = x - i;
+    return (float)(f[i] * (1.0 - w) + f[i + 1] * w);
+}
+
+/* h^2 DFT of the radially symmetric field f(|x|), scaled to the exact total. */
+static lu_result radial_spectrum(const float *f, int n, double dr, int g, double h, float *work, fftwf_complex *out,
+                                 lu_error *err) {
+    double sum = 0.0;
+    for (int j = 0; j < g; j++) {
+        double y = (j <= g / 2 ? j : j - g) * h;
+        for (int i = 0; i < g; i++) {
+            double x = (i <= g / 2 ? i : i - g) * h;
+            float v = radial_lerp(f, n, dr, sqrt(x * x + y * y));
+            work[(size_t)j * g + i] = v;
+            sum += v;
+        }
+    }
+    double exact = radial_integral(f, n, dr);
+    double scale = sum > 0.0 ? exact / sum : h * h;   /* sum * h^2 * (exact / (sum h^2)) */
+    for (size_t k = 0; k < (size_t)g * g; k++) work[k] = (float)(work[k] * scale);
+    fftwf_plan plan = fftwf_plan_dft_r2c_2d(g, g, work, out, FFTW_ESTIMATE);
+    if (!plan) return lu_fail(err, LU_ERR_BACKEND, "bssrdf: FFTW could not plan a %dx%d transform", g, g);
+    fftwf_execute(plan);
+    fftwf_destroy_plan(plan);
+    return LU_OK;
+}
+
+lu_result lu_bssrdf_spectra_from_radial(const float *r_top, const float *r_bottom, const float *t, int n, double dr,
+                                        int fft_size, double h, lu_bssrdf_spectra **out, lu_error *err) {
+    lu_result r = spectra_alloc(fft_size, h, out, err);
+    if (r != LU_OK) return r;
+    lu_bssrdf_spectra *s = *out;
+    float *work = fftwf_malloc((size_t)fft_size * fft_size * sizeof(float));
+    if (!work) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+    if (r == LU_OK) r = radial_spectrum(r_top, n, dr, fft_size, h, work, s->r_top, err);
+    if (r == LU_OK) r = radial_spectrum(r_bottom, n, dr, fft_size, h, work, s->r_bottom, err);
+    if (r == LU_OK) r = radial_spectrum(t, n, dr, fft_size, h, work, s->t, err);
+    fftwf_free(work);
+    if (r != LU_OK) {
+        lu_bssrdf_spectra_destroy(s);
+        *out = NULL;
+    }
+    return r;
+}
+
+lu_result lu_bssrdf_spectra_identity(int fft_size, double h, lu_bssrdf_spectra **out, lu_error *err) {
+    lu_result r = spectra_alloc(fft_size, h, out, err);
+    if (r != LU_OK) return r;
+    size_t n = (size_t)fft_size * (size_t)(fft_size / 2 + 1);
+    for (size_t k = 0; k < n; k++) {
+        (*out)->r_top[k][0] = (*out)->r_top[k][1] = 0.0f;
+        (*out)->r_bottom[k][0] = (*out)->r_bottom[k][1] = 0.0f;
+        (*out)->t[k][0] = 1.0f;
+        (*out)->t[k][1] = 0.0f;
+    }
+    return LU_OK;
+}
+
+lu_result lu_bssrdf_spectra_stack(const lu_bssrdf_spectra *top, const lu_bssrdf_spectra *bottom,
+                                  lu_bssrdf_spectra **out, lu_error *err) {
+    if (top->g != bottom->g || top->h != bottom->h)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "bssrdf: stacking spectra of different grids");
+    lu_result r = spectra_alloc(top->g, top->h, out, err);
+    if (r != LU_OK) return r;
+    size_t n = (size_t)top->g * (size_t)(top->g / 2 + 1);
+    for (size_t k = 0; k < n; k++) {
+        /* Complex arithmetic in double: 1 - R2 R1 is close to 1 - (a few tenths). */
+        double r1t_re = top->r_top[k][0], r1t_im = top->r_top[k][1];
+        double r1b_re = top->r_bottom[k][0], r1b_im = top->r_bottom[k][1];
+        double t1_re = top->t[k][0], t1_im = top->t[k][1];
+        double r2_re = bottom->r_top[k][0], r2_im = bottom->r_top[k][1];
+        double r2b_re = bottom->r_bottom[k][0], r2b_im = bottom->r_bottom[k][1];
+        double t2_re = bottom->t[k][0], t2_im = bottom->t[k][1];
+        /* q = 1 / (1 - R2 R1-) : the geometric series of inter-reflections */
+        double p_re = 1.0 - (r2_re * r1b_re - r2_im * r1b_im), p_im = -(r2_re * r1b_im + r2_im * r1b_re);
+        double den = p_re * p_re + p_im * p_im;
+        double q_re = p_re / den, q_im = -p_im / den;
+        /* T12 = T1 T2 q */
+        double a_re = t1_re * t2_re - t1_im * t2_im, a_im = t1_re * t2_im + t1_im * t2_re;
+        (*out)->t[k][0] = (float)(a_re * q_re - a_im * q_im);
+        (*out)->t[k][1] = (float)(a_re * q_im + a_im * q_re);
+        /* R12 = R1+ + T1 R2 T1 q */
+        double t11_re = t1_re * t1_re - t1_im * t1_im, t11_im = 2.0 * t1_re * t1_im;
+        double b_re = t11_re * r2_re - t11_im * r2_im, b_im = t11_re * r2_im + t11_im * r2_re;
+        (*out)->r_top[k][0] = (float)(r1t_re + b_re * q_re - b_im * q_im);
+        (*out)->r_top[k][1] = (float)(r1t_im + b_re * q_im + b_im * q_re);
+        /* From below, by symmetry: R21 = R2- + T2 R1- T2 / (1 - R1- R2-)... the
+         * stack is only ever lit from above, but keep a consistent value. */
+        double p2_re = 1.0 - (r1b_re * r2b_re - r1b_im * r2b_im), p2_im = -(r1b_re * r2b_im + r1b_im * r2b_re);
+        double den2 = p2_re * p2_re + p2_im * p2_im;
+        double q2_re = p2_re / den2, q2_im = -p2_im / den2;
+        double t22_re = t2_re * t2_re - t2_im * t2_im, t22_im = 2.0 * t2_re * t2_im;
+        double c_re = t22_re * r1b_re - t22_im * r1b_im, c_im = t22_re * r1b_im + t22_im * r1b_re;
+        (*out)->r_bottom[k][0] = (float)(r2b_re + c_re * q2_re - c_im * q2_im);
+        (*out)->r_bottom[k][1] = (float)(r2b_im + c_re * q2_im + c_im * q2_re);
+    }
+    return LU_OK;
+}
+
+static lu_result inverse_line(const fftwf_complex *spec, int g, double h, float *line, int n, lu_error *err) {
+    size_t nc = (size_t)g * (size_t)(g / 2 + 1);
+    fftwf_complex *copy = fftwf_malloc(nc * sizeof *copy);
+    float *space = fftwf_malloc((size_t)g * g * sizeof *space);
+    lu_result r = LU_OK;
+    if (!copy || !space) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+    if (r == LU_OK) {
+        memcpy(copy, spec, nc * sizeof *copy);
+        fftwf_plan plan = fftwf_plan_dft_c2r_2d(g, g, copy, space, FFTW_ESTIMATE);
+        if (!plan) {
+            r = lu_fail(err, LU_ERR_BACKEND, "bssrdf: FFTW could not plan a %dx%d transform", g, g);
+        } else {
+            fftwf_execute(plan);
+            fftwf_destroy_plan(plan);
+            double norm = 1.0 / ((double)g * g * h * h);
+            for (int k = 0; k < n; k++) line[k] = (float)(space[k] * norm);
+        }
+    }
+    fftwf_free(copy);
+    fftwf_free(space);
+    return r;
+}
+
+lu_result lu_bssrdf_spectra_radial(const lu_bssrdf_spectra *s, float *r_top, float *t, int n, lu_error *err) {
+    if (n > s->g / 2 + 1) return lu_fail(err, LU_ERR_RANGE, "bssrdf: %d radial samples exceed half the FFT grid", n);
+    lu_result r = LU_OK;
+    if (r_top) r = inverse_line(s->r_top, s->g, s->h, r_top, n, err);
+    if (r == LU_OK && t) r = inverse_line(s->t, s->g, s->h, t, n, err);
+    return r;
+}
+
+/* ---- multi-layer tables ---------------------------------------------------------------------- */
+
+/* Radial multipole profile of layer `i` of the stack, one channel, at r_k = k dr. */
+static void sample_radial(lu_k_diffusion k, int ch, float d, int pairs, int transmit, int n, double dr, float *out) {
+    radial_ctx ctx = {0};
+    ctx.model = LU_BSSRDF_MULTIPOLE;
+    ctx.k = k;
+    ctx.ch = ch;
+    ctx.d = d;
+    ctx.pairs = pairs;
+    ctx.transmit = transmit;
+    for (int i = 0; i < n; i++) out[i] = (float)radial_eval(&ctx, i * dr);
+}
+
+/* The same layer seen from below: its faces swapped. */
+static lu_k_diffusion flipped(lu_k_diffusion k) {
+    vec3 t = k.zb_top;
+    k.zb_top = k.zb_bottom;
+    k.zb_bottom = t;
+    return k;
+}
+
+static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu_bssrdf_profile_desc *desc,
+                              lu_bssrdf_profile *p, lu_error *err) {
+    int base = count - 1;
+    double coat = 0.0;
+    for (int i = 0; i < base; i++) coat += layers[i].thickness;
+    p->kind = 1;
+    p->nr = desc->table_size;
+    p->nd = desc->thickness_steps;
+    p->d_lo = (float)(coat + desc->d_min_mfp * p->mfp);
+    p->d_hi = (float)(coat + desc->d_max_mfp * p->mfp);
+    lu_k_diffusion kd[LU_MAX_COATINGS + 1];
+    for (int i = 0; i < count; i++) kd[i] = layer_diffusion(layers, count, i);
+
+    /* The grid must hold every layer's reach and then the spread of their
+     * inter-reflections: twice the widest single-layer radius, so the
+     * circular convolution's wrap-around lands where the profiles are ~0. */
+    double reach = 0.0;
+    for (int i = 0; i < count; i++) {
+        for (int c = 0; c < 3; c++) {
+            radial_ctx ctx = {0};
+            ctx.model = LU_BSSRDF_MULTIPOLE;
+            ctx.k = kd[i];
+            ctx.ch = c;
+            ctx.pairs = desc->pairs;
+            ctx.d = i == base ? p->d_hi - (float)coat : layers[i].thickness;
+            double r_lo, r_hi, tot;
+            radial_range(lu_v3_get(kd[i].l, c), lu_v3_get(kd[i].sigma_tr, c), &r_lo, &r_hi);
+            reach = fmax(reach, eps_radius_ref(radial_eval, &ctx, r_lo, r_hi, 1024, desc->epsilon, 0.0, &tot));
+        }
+    }
+    int g = desc->fft_size;
+    double r_ext = 2.0 * reach, h = r_ext / (g / 2);
+    int nrad = 2 * g;                   /* radial samples over [0, 1.5 r_ext] (grid corners are at sqrt 2 r_ext) */
+    double drad = 1.5 * r_ext / (nrad - 1);
+    int nline = g / 2 + 1;              /* extracted line: r_k = k h, k < nline */
+
+    float *rad_r = malloc((size_t)nrad * sizeof(float)), *rad_rb = malloc((size_t)nrad * sizeof(float));
+    float *rad_t = malloc((size_t)nrad * sizeof(float));
+    float *lines = malloc((size_t)2 * 3 * p->nd * nline * sizeof(float)); /* [t][c][j][k] */
+    lu_bssrdf_spectra *coats[3][LU_MAX_COATINGS] = {{0}};
+    lu_result r = LU_OK;
+    if (!rad_r || !rad_rb || !rad_t || !lines) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+
+    for (int c = 0; c < 3 && r == LU_OK; c++) {
+        for (int i = 0; i < base && r == LU_OK; i++) {
+            sample_radial(kd[i], c, layers[i].thickness, desc->pairs, 0, nrad, drad, rad_r);
+            sample_radial(flipped(kd[i]), c, layers[i].thickness, desc->pairs, 0, nrad, drad, rad_rb);
+            sample_radial(kd[i], c, layers[i].thickness, desc->pairs, 1, nrad, drad, rad_t);
+            r = lu_bssrdf_spectra_from_radial(rad_r, rad_rb, rad_t, nrad, drad, g, h, &coats[c][i], err);
+        }
+    }
+    for (int j = 0; j < p->nd && r == LU_OK; j++) {
+        float d_base = row_thickness(p, j) - (float)coat;
+        for (int c = 0; c < 3 && r == LU_OK; c++) {
+            lu_bssrdf_spectra *acc = NULL;
+            sample_radial(kd[base], c, d_base, desc->pairs, 0, nrad, drad, rad_r);
+            sample_radial(flipped(kd[base]), c, d_base, desc->pairs, 0, nrad, drad, rad_rb);
+            sample_radial(kd[base], c, d_base, desc->pairs, 1, nrad, drad, rad_t);
+            r = lu_bssrdf_spectra_from_radial(rad_r, rad_rb, rad_t, nrad, drad, g, h, &acc, err);
+            for (int i = base - 1; i >= 0 && r == LU_OK; i--) {
+                lu_bssrdf_spectra *next = NULL;
+                r = lu_bssrdf_spectra_stack(coats[c][i], acc, &next, err);
+                lu_bssrdf_spectra_destroy(acc);
+                acc = next;
+            }
+            if (r == LU_OK)
+                r = lu_bssrdf_spectra_radial(acc, lines + (size_t)((0 * 3 + c) * p->nd + j) * nline,
+                                             lines + (size_t)((1 * 3 + c) * p->nd + j) * nline, nline, err);
+            lu_bssrdf_spectra_destroy(acc);
+        }
+    }
+    for (int c = 0; c < 3; c++)
+        for (int i = 0; i < base; i++) lu_bssrdf_spectra_destroy(coats[c][i]);
+
+    if (r == LU_OK) {
+        /* r_max from the stacked profiles (2 pi r weighted, trapezoid on the line). */
+        double r_max = 0.0;
+        for (int t = 0; t < 2; t++)
+            for (int c = 0; c < 3; c++)
+                for (int j = 0; j < p->nd; j++) {
+                    const float *ln = lines + (size_t)((t * 3 + c) * p->nd + j) * nline;
+                    const float *rl = lines + (size_t)((0 * 3 + c) * p->nd + j) * nline;
+                    double tot = 0.0, ref = 0.0;
+                    for (int k = 0; k + 1 < nline; k++) {
+                        tot += 0.5 * h * 2.0 * M_PI * (k * h * fmax(ln[k], 0.0) + (k + 1) * h * fmax(ln[k + 1], 0.0));
+                        ref += 0.5 * h * 2.0 * M_PI * (k * h * fmax(rl[k], 0.0) + (k + 1) * h * fmax(rl[k + 1], 0.0));
+                    }
+                    ref = fmax(ref, tot);
+                    if (tot < desc->epsilon * ref || tot <= 0.0) continue;
+                    double cum = 0.0;
+                    for (int k = 0; k + 1 < nline; k++) {
+                        cum += 0.5 * h * 2.0 * M_PI * (k * h * fmax(ln[k], 0.0) + (k + 1) * h * fmax(ln[k + 1], 0.0));
+                        if (cum >= tot - desc->epsilon * ref) {
+                            r_max = fmax(r_max, (k + 1) * h);
+                            break;
+                        }
+                    }
+                    if (t == 0 && j == p->nd - 1) p->total_numeric[c] = tot;
+                }
+        if (r_max <= 0.0) r_max = reach;
+        p->r_max = (float)r_max;
+        p->table = malloc((size_t)6 * p->nr * p->nd * sizeof *p->table);
+        if (!p->table) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the profile tables");
+    }
+    if (r == LU_OK) {
+        for (int t = 0; t < 2; t++)
+            for (int j = 0; j < p->nd; j++)
+                for (int c = 0; c < 3; c++) {
+                    const float *ln = lines + (size_t)((t * 3 + c) * p->nd + j) * nline;
+                    float *row = p->table + (size_t)3 * p->nr * (t * p->nd + j);
+                    /* FFT round-off leaves tiny negative ripples where the profile is ~0. */
+                    for (int i = 0; i < p->nr; i++)
+                        row[3 * i + c] = fmaxf(radial_lerp(ln, nline, h, table_r(i, p->nr, p->r_max)), 0.0f);
+                }
+        const float *thick_row = p->table + (size_t)3 * p->nr * (p->nd - 1);
+        for (int c = 0; c < 3; c++) {
+            p->total_table[c] = table_total(thick_row, p->nr, p->r_max, c);
+            p->total_closed[c] = NAN;  /* no closed form for a stack */
+        }
+    }
+    free(rad_r);
+    free(rad_rb);
+    free(rad_t);
+    free(lines);
+    return r;
+}
+
+lu_result lu_bssrdf_profile_build(const lu_bssrdf_layer *layers, int count, const lu_bssrdf_profile_desc *desc,
+                                  lu_bssrdf_profile *out, lu_error *err) {
+    memset(out, 0, sizeof *out);
+    if (count < 1 || count > LU_MAX_COATINGS + 1)
+        return lu_fail(err, LU_ERR_RANGE, "bssrdf: %d layers (1 to %d supported)", count, LU_MAX_COATINGS + 1);
+    if (desc->table_size < 4 || desc->thickness_steps < 2 || desc->epsilon <= 0.0 || desc->epsilon >= 1.0 ||
+        !(desc->d_min_mfp > 0.0 && desc->d_max_mfp > desc->d_min_mfp))
+        return lu_fail(err, LU_ERR_RANGE, "bssrdf: invalid profile settings");
+    double mfp = 0.0;
+    for (int i = 0; i < count; i++) {
+        const lu_bssrdf_layer *L = &layers[i];
+        for (int c = 0; c < 3; c++) {
+            double sp = lu_v3_get(L->sigma_sp, c), sa = lu_v3_get(L->sigma_a, c);
+            if (!(sp > 0.0) || !(sa >= 0.0) || !isfinite(sp) || !isfinite(sa))
+                return lu_fail(err, LU_ERR_RANGE,
+                               "bssrdf: layer %d needs sigma_s' > 0 and sigma_a >= 0 in every channel (got %g, %g)", i,
+                               sp, sa);
+            mfp = fmax(mfp, 1.0 / (sp + sa));
+        }
+        if (!(L->eta >= 1.0f && L->eta <= 4.0f)) return lu_fail(err, LU_ERR_RANGE, "bssrdf: layer %d eta %g", i, L->eta);
+        if (i + 1 < count && !(L->thickness > 0.0f))
+            return lu_fail(err, LU_ERR_RANGE, "bssrdf: coating %d needs a thickness > 0", i);
+    }
+    out->mfp = (float)mfp;
+    lu_result r;
+    if (count > 1) r = build_layers(layers, count, desc, out, err);
+    else if (desc->model == LU_BSSRDF_MULTIPOLE) r = build_multipole(layers, desc, out, err);
+    else r = build_1d(layers, desc, out, err);
+    if (r != LU_OK) lu_bssrdf_profile_destroy(out);
+    return r;
+}
+
+int lu_bssrdf_material_layers(const lu_material *m, lu_bssrdf_layer *layers, int max_layers) {
+    int n = 0;
+    for (int i = 0; i < m->coating_count && n < max_layers - 1; i++) {
+        const lu_coating *c = &m->coatings[i];
+        layers[n].sigma_sp = lu_v3_scale(c->sigma_s, 1.0f - c->g);
+        layers[n].sigma_a = c->sigma_a;
+        layers[n].eta = c->eta;
+        layers[n].thickness = c->thickness;
+        n++;
+    }
+    layers[n].sigma_sp = lu_v3_scale(m->sigma_s, 1.0f - m->g);
+    layers[n].sigma_a = m->sigma_a;
+    layers[n].eta = m->eta;
+    layers[n].thickness = 0.0f;
+    return n + 1;
+}
+
+/* ---- Monte Carlo ---------------------------------------------------------------------------------- */
+
+typedef struct mc_rng {
+    uint64_t s;
+} mc_rng;
+
+/* splitmix64: one multiply-xorshift stream per chunk. */
+static double mc_uniform(mc_rng *g) {
+    uint64_t z = (g->s += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
+}
+
+enum { MC_CHUNKS = 64 };
+/* Per chunk: R bins, T bins, R bins of multiply scattered light, then
+ * r_total, t_total, r_total^2 per path, r_total of multiple scattering. */
+#define TALLY(b) (3 * (b) + 4)
+
+typedef struct mc_job {
+    double sigma_t, albedo, eta, thickness;
+    long long paths;
+    unsigned long long seed;
+    int bins;
+    double dr;
+    double *tally;       /* per chunk: TALLY(bins) doubles, laid out as below */
+} mc_job;
+
+static double fresnel_inside(double cos_i, double eta) {
+    /* From inside (index eta) out to index 1: the relative index is 1 / eta. */
+    return (double)lu_k_fresnel_reflectance((float)cos_i, (float)(1.0 / eta));
+}
+
+static void mc_chunk(void *vctx, int64_t begin, int64_t end, int thread) {
+    mc_job *j = vctx;
+    for (int64_t chunk = begin; chunk < end; chunk++) {
+        double *tal = j->tally + (size_t)chunk * TALLY(j->bins);
+        mc_rng g = {j->seed * 0x2545F4914F6CDD1Dull + (uint64_t)chunk * 0x9E3779B97F4A7C15ull + 1};
+        long long p0 = j->paths * chunk / MC_CHUNKS, p1 = j->paths * (chunk + 1) / MC_CHUNKS;
+        for (long long p = p0; p < p1; p++) {
+            double x = 0, y = 0, z = 0, dx = 0, dy = 0, dz = 1, w = 1.0, r_path = 0.0;
+            int events = 0;
+            for (int ev = 0; ev < 100000000; ev++) {
+                double s = -log(1.0 - mc_uniform(&g)) / j->sigma_t;
+                double zn = z + s * dz;
+                if (zn < 0.0 || zn > j->thickness) {
+                    bool top = zn < 0.0;
+                    double t = ((top ? 0.0 : j->thickness) - z) / dz;
+                    x += t * dx;
+                    y += t * dy;
+                    z = top ? 0.0 : j->thickness;
+                    double f = fresnel_inside(fabs(dz), j->eta);
+                    double out = w * (1.0 - f);
+                    double r = sqrt(x * x + y * y);
+                    int b = (int)(r / j->dr);
+                    if (b >= j->bins) b = j->bins - 1;
+                    tal[(top ? 0 : j->bins) + b] += out;
+                    if (top) {
+                        tal[3 * j->bins] += out;
+                        r_path += out;
+                        if (events >= 2) {
+                            tal[2 * j->bins + b] += out;
+                            tal[3 * j->bins + 3] += out;
+                        }
+                    } else {
+                        tal[3 * j->bins + 1] += out;
+                    }
+                    w *= f;
+                    dz = -dz;
+                } else {
+                    x += s * dx;
+                    y += s * dy;
+                    z = zn;
+                    w *= j->albedo;
+                    events++;
+                    double ct = 1.0 - 2.0 * mc_uniform(&g), st = sqrt(fmax(0.0, 1.0 - ct * ct));
+                    double phi = 2.0 * M_PI * mc_uniform(&g);
+                    dx = st * cos(phi);
+                    dy = st * sin(phi);
+                    dz = ct;
+                }
+                if (w < 1e-4) { /* Russian roulette keeps the estimate unbiased */
+                    if (mc_uniform(&g) < 0.1) w *= 10.0;
+                    else break;
+                }
+            }
+            tal[3 * j->bins + 2] += r_path * r_path;
+        }
+    }
+}
+
+lu_result lu_bssrdf_mc_slab(double sigma_sp, double sigma_a, double eta, double thickness, long long paths,
+                            unsigned long long seed, int bins, double dr, lu_bssrdf_mc_result *out, lu_error *err) {
+    memset(out, 0, sizeof *out);
+    if (!(sigma_sp > 0.0) || !(sigma_a >= 0.0) || paths < 1 || bins < 1 || !(dr > 0.0) || !(thickness > 0.0) ||
+        !(eta >= 1.0))
+        return lu_fail(err, LU_ERR_RANGE, "bssrdf: invalid Monte Carlo settings");
+    mc_job j = {sigma_sp + sigma_a, sigma_sp / (sigma_sp + sigma_a), eta, thickness, paths, seed, bins, dr, NULL};
+    j.tally = calloc((size_t)MC_CHUNKS * TALLY(bins), sizeof(double));
+    out->r_profile = calloc((size_t)bins, sizeof(double));
+    out->t_profile = calloc((size_t)bins, sizeof(double));
+    out->r_multiple = calloc((size_t)bins, sizeof(double));
+    if (!j.tally || !out->r_profile || !out->t_profile || !out->r_multiple) {
+        free(j.tally);
+        lu_bssrdf_mc_destroy(out);
+        return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+    }
+    lu_parallel_for(MC_CHUNKS, 1, mc_chunk, &j, "random walk");
+    double sq = 0.0;
+    for (int c = 0; c < MC_CHUNKS; c++) {
+        const double *tal = j.tally + (size_t)c * TALLY(bins);
+        for (int b = 0; b < bins; b++) {
+            out->r_profile[b] += tal[b];
+            out->t_profile[b] += tal[bins + b];
+            out->r_multiple[b] += tal[2 * bins + b];
+        }
+        out->r_total += tal[3 * bins];
+        out->t_total += tal[3 * bins + 1];
+        sq += tal[3 * bins + 2];
+        out->r_multiple_total += tal[3 * bins + 3];
+    }
+    free(j.tally);
+    for (int b = 0; b < bins; b++) {
+        double area = M_PI * dr * dr * ((b + 1.0) * (b + 1.0) - (double)b * b);
+        out->r_profile[b] /= (double)paths * area;
+        out->t_profile[b] /= (double)paths * area;
+        out->r_multiple[b] /= (double)paths * area;
+    }
+    out->r_total /= (double)paths;
+    out->t_total /= (double)paths;
+    out->r_multiple_total /= (double)paths;
+    out->r_stderr = sqrt(fmax(0.0, sq / (double)paths - out->r_total * out->r_total) / (double)paths);
+    out->bins = bins;
+    out->dr = dr;
+    return LU_OK;
+}
+
+void lu_bssrdf_mc_destroy(lu_bssrdf_mc_result *r) {
+    if (!r) return;
+    free(r->r_profile);
+    free(r->t_profile);
+    free(r->r_multiple);
+    memset(r, 0, sizeof *r);
+}
