@@ -178,10 +178,13 @@ lu_vec3 lu_bssrdf_profile_eval(const lu_bssrdf_profile *p, float r, float d, int
     if (j >= p->nd - 1) j = p->nd > 1 ? p->nd - 2 : 0;
     float w = p->nd > 1 ? y - (float)j : 0.0f;
     const float *block = p->table + (size_t)(transmit ? 3 * p->nr * p->nd : 0);
+    float rm = transmit ? p->r_max_t : p->r_max;
+    if (transmit && d > p->d_t_cut) return lu_v3s(0.0f);
     for (int c = 0; c < 3; c++) {
-        float a = table_lerp(block + (size_t)3 * p->nr * j, p->nr, p->r_max, r, c);
-        float b = p->nd > 1 ? table_lerp(block + (size_t)3 * p->nr * (j + 1), p->nr, p->r_max, r, c) : a;
+        float a = table_lerp(block + (size_t)3 * p->nr * j, p->nr, rm, r, c);
+        float b = p->nd > 1 ? table_lerp(block + (size_t)3 * p->nr * (j + 1), p->nr, rm, r, c) : a;
         out[c] = a * (1.0f - w) + b * w;
+        if (transmit) out[c] *= expf(-fminf(p->t_decay[c] * d, LU_BSSRDF_DECAY_CAP));
     }
     return lu_v3(out[0], out[1], out[2]);
 }
@@ -259,33 +262,39 @@ static lu_result build_multipole(const lu_bssrdf_layer *layer, const lu_bssrdf_p
     p->kind = 1;
     p->nr = desc->table_size;
     p->nd = desc->thickness_steps;
+    for (int c = 0; c < 3; c++) p->t_decay[c] = lu_v3_get(ctx.k.sigma_tr, c);
     p->d_lo = (float)(desc->d_min_mfp * p->mfp);
     p->d_hi = (float)(desc->d_max_mfp * p->mfp);
-    double r_max = 0.0;
+    /* R and T get their own radius: R's covers 1 - eps of each row's
+     * reflected power, T's 1 - eps of each row's transmitted power wherever
+     * that is at least LU_BSSRDF_T_FLOOR of the reflected (a back-lit pixel
+     * sees nothing else), and T is dropped beyond the thickest such row. */
+    double r_max = 0.0, r_max_t = 0.0;
+    p->d_t_cut = 0.0f;
     for (int j = 0; j < p->nd; j++) {
         ctx.d = row_thickness(p, j);
         for (int c = 0; c < 3; c++) {
             ctx.ch = c;
             float s = lu_v3_get(ctx.k.sigma_tr, c), l = lu_v3_get(ctx.k.l, c);
-            double r_lo, r_hi, rt, tt;
+            double r_lo, r_hi, rt, tt, rc, tc;
             radial_range(l, s, &r_lo, &r_hi);
-            ctx.transmit = 0;
-            double rr = eps_radius_ref(radial_eval, &ctx, r_lo, r_hi, 1024, desc->epsilon, 0.0, &rt);
-            ctx.transmit = 1;
-            /* Transmission that carries almost nothing must not widen every splat. */
-            double ref = 0.0, tdummy;
             lu_bssrdf_slab_totals(lu_v3_get(layer->sigma_sp, c), lu_v3_get(layer->sigma_a, c), layer->eta, layer->eta,
-                                  ctx.d, &ref, &tdummy);
-            double rtr = eps_radius_ref(radial_eval, &ctx, r_lo, r_hi, 1024, desc->epsilon, fmax(ref, tdummy), &tt);
-            if (tt < desc->epsilon * fmax(ref, tdummy)) rtr = 0.0;
-            r_max = fmax(r_max, fmax(rr, rtr));
+                                  ctx.d, &rc, &tc);
+            ctx.transmit = 0;
+            r_max = fmax(r_max, eps_radius_ref(radial_eval, &ctx, r_lo, r_hi, 1024, desc->epsilon, 0.0, &rt));
+            if (tc >= LU_BSSRDF_T_FLOOR * rc) {
+                ctx.transmit = 1;
+                r_max_t = fmax(r_max_t, eps_radius_ref(radial_eval, &ctx, r_lo, r_hi, 1024, desc->epsilon, 0.0, &tt));
+                p->d_t_cut = fmaxf(p->d_t_cut, ctx.d);
+            }
             if (j == p->nd - 1) {
                 p->total_numeric[c] = rt;
-                p->total_closed[c] = ref;
+                p->total_closed[c] = rc;
             }
         }
     }
     p->r_max = (float)r_max;
+    p->r_max_t = (float)(r_max_t > 0.0 ? r_max_t : r_max);
     p->table = malloc((size_t)6 * p->nr * p->nd * sizeof *p->table);
     if (!p->table) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the profile tables");
     for (int t = 0; t < 2; t++) {
@@ -293,11 +302,13 @@ static lu_result build_multipole(const lu_bssrdf_layer *layer, const lu_bssrdf_p
         for (int j = 0; j < p->nd; j++) {
             ctx.d = row_thickness(p, j);
             float *row = p->table + (size_t)3 * p->nr * (t * p->nd + j);
+            float f[3] = {1.0f, 1.0f, 1.0f};
+            for (int c = 0; t && c < 3; c++) f[c] = expf(fminf(p->t_decay[c] * ctx.d, LU_BSSRDF_DECAY_CAP));
             for (int i = 0; i < p->nr; i++) {
-                vec3 v = lu_k_multipole(ctx.k, (float)table_r(i, p->nr, r_max), ctx.d, ctx.pairs, t);
-                row[3 * i] = v.x;
-                row[3 * i + 1] = v.y;
-                row[3 * i + 2] = v.z;
+                vec3 v = lu_k_multipole(ctx.k, (float)table_r(i, p->nr, t ? p->r_max_t : r_max), ctx.d, ctx.pairs, t);
+                row[3 * i] = v.x * f[0];
+                row[3 * i + 1] = v.y * f[1];
+                row[3 * i + 2] = v.z * f[2];
             }
         }
     }
@@ -311,14 +322,16 @@ static lu_result build_multipole(const lu_bssrdf_layer *layer, const lu_bssrdf_p
 struct lu_bssrdf_spectra {
     int g;
     double h;
-    fftwf_complex *r_top, *r_bottom, *t;   /* g x (g/2 + 1) each */
+    /* reflectance from above and from below, transmittance downwards and
+     * upwards: the diffusion model is not reciprocal when the two faces
+     * have different boundary conditions. g x (g/2 + 1) each. */
+    fftwf_complex *c[4];
 };
+enum { S_RTOP, S_RBOTTOM, S_TDOWN, S_TUP };
 
 void lu_bssrdf_spectra_destroy(lu_bssrdf_spectra *s) {
     if (!s) return;
-    fftwf_free(s->r_top);
-    fftwf_free(s->r_bottom);
-    fftwf_free(s->t);
+    for (int i = 0; i < 4; i++) fftwf_free(s->c[i]);
     free(s);
 }
 
@@ -330,10 +343,9 @@ static lu_result spectra_alloc(int g, double h, lu_bssrdf_spectra **out, lu_erro
     s->g = g;
     s->h = h;
     size_t n = (size_t)g * (size_t)(g / 2 + 1);
-    s->r_top = fftwf_malloc(n * sizeof(fftwf_complex));
-    s->r_bottom = fftwf_malloc(n * sizeof(fftwf_complex));
-    s->t = fftwf_malloc(n * sizeof(fftwf_complex));
-    if (!s->r_top || !s->r_bottom || !s->t) {
+    bool ok = true;
+    for (int i = 0; i < 4; i++) ok = (s->c[i] = fftwf_malloc(n * sizeof(fftwf_complex))) != NULL && ok;
+    if (!ok) {
         lu_bssrdf_spectra_destroy(s);
         return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for %dx%d spectra", g, g);
     }
@@ -341,14 +353,19 @@ static lu_result spectra_alloc(int g, double h, lu_bssrdf_spectra **out, lu_erro
     return LU_OK;
 }
 
-/* Simpson (trapezoid on a leftover panel) of 2 pi r f(r), r_k = k dr. */
-static double radial_integral(const float *f, int n, double dr) {
+/* The integral of f(|x|) over the square [-a, a]^2 from radial samples
+ * r_k = k dr: Simpson over r of 2 pi r f(r) times the fraction of the circle
+ * of radius r inside the square (1 up to a, 1 - (4/pi) acos(a/r) beyond). */
+static double square_integral(const float *f, int n, double dr, double a) {
     double sum = 0.0;
-    int i = 0;
-    for (; i + 2 < n; i += 2)
-        sum += dr / 3.0 * (i * dr * f[i] + 4.0 * (i + 1) * dr * f[i + 1] + (i + 2) * dr * f[i + 2]);
-    if (i + 1 < n) sum += 0.5 * dr * (i * dr * f[i] + (i + 1) * dr * f[i + 1]);
-    return 2.0 * M_PI * sum;
+    int m = n - 1;
+    if (m & 1) m--;
+    for (int i = 0; i <= m; i++) {
+        double r = i * dr, w = (i == 0 || i == m) ? 1.0 : ((i & 1) ? 4.0 : 2.0);
+        double frac = r <= a ? 1.0 : (r >= a * M_SQRT2 ? 0.0 : 1.0 - 4.0 / M_PI * acos(a / r));
+        sum += w * 2.0 * M_PI * r * f[i] * frac;
+    }
+    return sum * dr / 3.0;
 }
 
 static float radial_lerp(const float *f, int n, double dr, double r) {
@@ -359,7 +376,12 @@ static float radial_lerp(const float *f, int n, double dr, double r) {
     return (float)(f[i] * (1.0 - w) + f[i + 1] * w);
 }
 
-/* h^2 DFT of the radially symmetric field f(|x|), scaled to the exact total. */
+/* h^2 DFT of the radially symmetric field f(|x|) on the grid (origin at
+ * texel 0, wrapping). Each texel holds f averaged over its cell (8 x 8
+ * points near the origin, where the profile's peak is about as wide as a
+ * cell, 4 x 4 a little further, the centre beyond), so the sum times h^2 is
+ * the integral and the peak's power is not smeared over the whole field; a
+ * last rescale to the Simpson integral over the square removes what is left. */
 static lu_result radial_spectrum(const float *f, int n, double dr, int g, double h, float *work, fftwf_complex *out,
                                  lu_error *err) {
     double sum = 0.0;
@@ -367,13 +389,21 @@ static lu_result radial_spectrum(const float *f, int n, double dr, int g, double
         double y = (j <= g / 2 ? j : j - g) * h;
         for (int i = 0; i < g; i++) {
             double x = (i <= g / 2 ? i : i - g) * h;
-            float v = radial_lerp(f, n, dr, sqrt(x * x + y * y));
+            double rho = sqrt(x * x + y * y);
+            int ss = rho < 3.0 * h ? 8 : (rho < 8.0 * h ? 4 : 1);
+            double acc = 0.0;
+            for (int b = 0; b < ss; b++)
+                for (int a = 0; a < ss; a++) {
+                    double px = x + h * ((a + 0.5) / ss - 0.5), py = y + h * ((b + 0.5) / ss - 0.5);
+                    acc += radial_lerp(f, n, dr, sqrt(px * px + py * py));
+                }
+            float v = (float)(acc / (ss * ss));
             work[(size_t)j * g + i] = v;
             sum += v;
         }
     }
-    double exact = radial_integral(f, n, dr);
-    double scale = sum > 0.0 ? exact / sum : h * h;   /* sum * h^2 * (exact / (sum h^2)) */
+    double exact = square_integral(f, n, dr, 0.5 * g * h);
+    double scale = sum > 0.0 ? exact / sum : h * h;
     for (size_t k = 0; k < (size_t)g * g; k++) work[k] = (float)(work[k] * scale);
     fftwf_plan plan = fftwf_plan_dft_r2c_2d(g, g, work, out, FFTW_ESTIMATE);
     if (!plan) return lu_fail(err, LU_ERR_BACKEND, "bssrdf: FFTW could not plan a %dx%d transform", g, g);
@@ -382,16 +412,16 @@ static lu_result radial_spectrum(const float *f, int n, double dr, int g, double
     return LU_OK;
 }
 
-lu_result lu_bssrdf_spectra_from_radial(const float *r_top, const float *r_bottom, const float *t, int n, double dr,
-                                        int fft_size, double h, lu_bssrdf_spectra **out, lu_error *err) {
+lu_result lu_bssrdf_spectra_from_radial(const float *r_top, const float *r_bottom, const float *t_down,
+                                        const float *t_up, int n, double dr, int fft_size, double h,
+                                        lu_bssrdf_spectra **out, lu_error *err) {
     lu_result r = spectra_alloc(fft_size, h, out, err);
     if (r != LU_OK) return r;
     lu_bssrdf_spectra *s = *out;
     float *work = fftwf_malloc((size_t)fft_size * fft_size * sizeof(float));
     if (!work) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
-    if (r == LU_OK) r = radial_spectrum(r_top, n, dr, fft_size, h, work, s->r_top, err);
-    if (r == LU_OK) r = radial_spectrum(r_bottom, n, dr, fft_size, h, work, s->r_bottom, err);
-    if (r == LU_OK) r = radial_spectrum(t, n, dr, fft_size, h, work, s->t, err);
+    const float *src[4] = {r_top, r_bottom, t_down, t_up};
+    for (int i = 0; i < 4 && r == LU_OK; i++) r = radial_spectrum(src[i], n, dr, fft_size, h, work, s->c[i], err);
     fftwf_free(work);
     if (r != LU_OK) {
         lu_bssrdf_spectra_destroy(s);
@@ -404,13 +434,29 @@ lu_result lu_bssrdf_spectra_identity(int fft_size, double h, lu_bssrdf_spectra *
     lu_result r = spectra_alloc(fft_size, h, out, err);
     if (r != LU_OK) return r;
     size_t n = (size_t)fft_size * (size_t)(fft_size / 2 + 1);
-    for (size_t k = 0; k < n; k++) {
-        (*out)->r_top[k][0] = (*out)->r_top[k][1] = 0.0f;
-        (*out)->r_bottom[k][0] = (*out)->r_bottom[k][1] = 0.0f;
-        (*out)->t[k][0] = 1.0f;
-        (*out)->t[k][1] = 0.0f;
-    }
+    for (int i = 0; i < 4; i++)
+        for (size_t k = 0; k < n; k++) {
+            (*out)->c[i][k][0] = i >= S_TDOWN ? 1.0f : 0.0f;
+            (*out)->c[i][k][1] = 0.0f;
+        }
     return LU_OK;
+}
+
+typedef struct cplx {
+    double re, im;
+} cplx;
+static cplx cx(const fftwf_complex v) { return (cplx){v[0], v[1]}; }
+static cplx cmul(cplx a, cplx b) { return (cplx){a.re * b.re - a.im * b.im, a.re * b.im + a.im * b.re}; }
+static cplx cadd(cplx a, cplx b) { return (cplx){a.re + b.re, a.im + b.im}; }
+/* 1 / (1 - a b): the geometric series of inter-reflections between two faces */
+static cplx cseries(cplx a, cplx b) {
+    cplx p = cmul(a, b);
+    double re = 1.0 - p.re, im = -p.im, den = re * re + im * im;
+    return (cplx){re / den, -im / den};
+}
+static void cstore(fftwf_complex out, cplx v) {
+    out[0] = (float)v.re;
+    out[1] = (float)v.im;
 }
 
 lu_result lu_bssrdf_spectra_stack(const lu_bssrdf_spectra *top, const lu_bssrdf_spectra *bottom,
@@ -421,35 +467,17 @@ lu_result lu_bssrdf_spectra_stack(const lu_bssrdf_spectra *top, const lu_bssrdf_
     if (r != LU_OK) return r;
     size_t n = (size_t)top->g * (size_t)(top->g / 2 + 1);
     for (size_t k = 0; k < n; k++) {
-        /* Complex arithmetic in double: 1 - R2 R1 is close to 1 - (a few tenths). */
-        double r1t_re = top->r_top[k][0], r1t_im = top->r_top[k][1];
-        double r1b_re = top->r_bottom[k][0], r1b_im = top->r_bottom[k][1];
-        double t1_re = top->t[k][0], t1_im = top->t[k][1];
-        double r2_re = bottom->r_top[k][0], r2_im = bottom->r_top[k][1];
-        double r2b_re = bottom->r_bottom[k][0], r2b_im = bottom->r_bottom[k][1];
-        double t2_re = bottom->t[k][0], t2_im = bottom->t[k][1];
-        /* q = 1 / (1 - R2 R1-) : the geometric series of inter-reflections */
-        double p_re = 1.0 - (r2_re * r1b_re - r2_im * r1b_im), p_im = -(r2_re * r1b_im + r2_im * r1b_re);
-        double den = p_re * p_re + p_im * p_im;
-        double q_re = p_re / den, q_im = -p_im / den;
-        /* T12 = T1 T2 q */
-        double a_re = t1_re * t2_re - t1_im * t2_im, a_im = t1_re * t2_im + t1_im * t2_re;
-        (*out)->t[k][0] = (float)(a_re * q_re - a_im * q_im);
-        (*out)->t[k][1] = (float)(a_re * q_im + a_im * q_re);
-        /* R12 = R1+ + T1 R2 T1 q */
-        double t11_re = t1_re * t1_re - t1_im * t1_im, t11_im = 2.0 * t1_re * t1_im;
-        double b_re = t11_re * r2_re - t11_im * r2_im, b_im = t11_re * r2_im + t11_im * r2_re;
-        (*out)->r_top[k][0] = (float)(r1t_re + b_re * q_re - b_im * q_im);
-        (*out)->r_top[k][1] = (float)(r1t_im + b_re * q_im + b_im * q_re);
-        /* From below, by symmetry: R21 = R2- + T2 R1- T2 / (1 - R1- R2-)... the
-         * stack is only ever lit from above, but keep a consistent value. */
-        double p2_re = 1.0 - (r1b_re * r2b_re - r1b_im * r2b_im), p2_im = -(r1b_re * r2b_im + r1b_im * r2b_re);
-        double den2 = p2_re * p2_re + p2_im * p2_im;
-        double q2_re = p2_re / den2, q2_im = -p2_im / den2;
-        double t22_re = t2_re * t2_re - t2_im * t2_im, t22_im = 2.0 * t2_re * t2_im;
-        double c_re = t22_re * r1b_re - t22_im * r1b_im, c_im = t22_re * r1b_im + t22_im * r1b_re;
-        (*out)->r_bottom[k][0] = (float)(r2b_re + c_re * q2_re - c_im * q2_im);
-        (*out)->r_bottom[k][1] = (float)(r2b_im + c_re * q2_im + c_im * q2_re);
+        cplx r1t = cx(top->c[S_RTOP][k]), r1b = cx(top->c[S_RBOTTOM][k]);
+        cplx t1d = cx(top->c[S_TDOWN][k]), t1u = cx(top->c[S_TUP][k]);
+        cplx r2t = cx(bottom->c[S_RTOP][k]), r2b = cx(bottom->c[S_RBOTTOM][k]);
+        cplx t2d = cx(bottom->c[S_TDOWN][k]), t2u = cx(bottom->c[S_TUP][k]);
+        cplx q = cseries(r2t, r1b);   /* bounces between the layers' facing sides */
+        /* Thesis Eq. 3.10 and 3.12 with each face's own terms:
+         * T12 = T1 T2 q, R12 = R1 + T1 R2 T1' q (and the mirrored pair). */
+        cstore((*out)->c[S_TDOWN][k], cmul(cmul(t1d, t2d), q));
+        cstore((*out)->c[S_RTOP][k], cadd(r1t, cmul(cmul(cmul(t1d, r2t), t1u), q)));
+        cstore((*out)->c[S_TUP][k], cmul(cmul(t2u, t1u), q));
+        cstore((*out)->c[S_RBOTTOM][k], cadd(r2b, cmul(cmul(cmul(t2u, r1b), t2d), q)));
     }
     return LU_OK;
 }
@@ -480,9 +508,13 @@ static lu_result inverse_line(const fftwf_complex *spec, int g, double h, float 
 lu_result lu_bssrdf_spectra_radial(const lu_bssrdf_spectra *s, float *r_top, float *t, int n, lu_error *err) {
     if (n > s->g / 2 + 1) return lu_fail(err, LU_ERR_RANGE, "bssrdf: %d radial samples exceed half the FFT grid", n);
     lu_result r = LU_OK;
-    if (r_top) r = inverse_line(s->r_top, s->g, s->h, r_top, n, err);
-    if (r == LU_OK && t) r = inverse_line(s->t, s->g, s->h, t, n, err);
+    if (r_top) r = inverse_line(s->c[S_RTOP], s->g, s->h, r_top, n, err);
+    if (r == LU_OK && t) r = inverse_line(s->c[S_TDOWN], s->g, s->h, t, n, err);
     return r;
+}
+
+double lu_bssrdf_spectra_dc(const lu_bssrdf_spectra *s, int transmit) {
+    return s->c[transmit ? S_TDOWN : S_RTOP][0][0];
 }
 
 /* ---- multi-layer tables ---------------------------------------------------------------------- */
@@ -519,6 +551,7 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
     p->d_hi = (float)(coat + desc->d_max_mfp * p->mfp);
     lu_k_diffusion kd[LU_MAX_COATINGS + 1];
     for (int i = 0; i < count; i++) kd[i] = layer_diffusion(layers, count, i);
+    for (int c = 0; c < 3; c++) p->t_decay[c] = lu_v3_get(kd[base].sigma_tr, c);
 
     /* The grid must hold every layer's reach and then the spread of their
      * inter-reflections: twice the widest single-layer radius, so the
@@ -544,18 +577,20 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
     int nline = g / 2 + 1;              /* extracted line: r_k = k h, k < nline */
 
     float *rad_r = malloc((size_t)nrad * sizeof(float)), *rad_rb = malloc((size_t)nrad * sizeof(float));
-    float *rad_t = malloc((size_t)nrad * sizeof(float));
+    float *rad_t = malloc((size_t)nrad * sizeof(float)), *rad_tu = malloc((size_t)nrad * sizeof(float));
     float *lines = malloc((size_t)2 * 3 * p->nd * nline * sizeof(float)); /* [t][c][j][k] */
+    double *dc = malloc((size_t)2 * 3 * p->nd * sizeof(double));            /* [t][c][j]: exact totals */
     lu_bssrdf_spectra *coats[3][LU_MAX_COATINGS] = {{0}};
     lu_result r = LU_OK;
-    if (!rad_r || !rad_rb || !rad_t || !lines) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+    if (!rad_r || !rad_rb || !rad_t || !rad_tu || !lines || !dc) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
 
     for (int c = 0; c < 3 && r == LU_OK; c++) {
         for (int i = 0; i < base && r == LU_OK; i++) {
             sample_radial(kd[i], c, layers[i].thickness, desc->pairs, 0, nrad, drad, rad_r);
             sample_radial(flipped(kd[i]), c, layers[i].thickness, desc->pairs, 0, nrad, drad, rad_rb);
             sample_radial(kd[i], c, layers[i].thickness, desc->pairs, 1, nrad, drad, rad_t);
-            r = lu_bssrdf_spectra_from_radial(rad_r, rad_rb, rad_t, nrad, drad, g, h, &coats[c][i], err);
+            sample_radial(flipped(kd[i]), c, layers[i].thickness, desc->pairs, 1, nrad, drad, rad_tu);
+            r = lu_bssrdf_spectra_from_radial(rad_r, rad_rb, rad_t, rad_tu, nrad, drad, g, h, &coats[c][i], err);
         }
     }
     for (int j = 0; j < p->nd && r == LU_OK; j++) {
@@ -565,16 +600,20 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
             sample_radial(kd[base], c, d_base, desc->pairs, 0, nrad, drad, rad_r);
             sample_radial(flipped(kd[base]), c, d_base, desc->pairs, 0, nrad, drad, rad_rb);
             sample_radial(kd[base], c, d_base, desc->pairs, 1, nrad, drad, rad_t);
-            r = lu_bssrdf_spectra_from_radial(rad_r, rad_rb, rad_t, nrad, drad, g, h, &acc, err);
+            sample_radial(flipped(kd[base]), c, d_base, desc->pairs, 1, nrad, drad, rad_tu);
+            r = lu_bssrdf_spectra_from_radial(rad_r, rad_rb, rad_t, rad_tu, nrad, drad, g, h, &acc, err);
             for (int i = base - 1; i >= 0 && r == LU_OK; i--) {
                 lu_bssrdf_spectra *next = NULL;
                 r = lu_bssrdf_spectra_stack(coats[c][i], acc, &next, err);
                 lu_bssrdf_spectra_destroy(acc);
                 acc = next;
             }
-            if (r == LU_OK)
+            if (r == LU_OK) {
                 r = lu_bssrdf_spectra_radial(acc, lines + (size_t)((0 * 3 + c) * p->nd + j) * nline,
                                              lines + (size_t)((1 * 3 + c) * p->nd + j) * nline, nline, err);
+                dc[(0 * 3 + c) * p->nd + j] = lu_bssrdf_spectra_dc(acc, 0);
+                dc[(1 * 3 + c) * p->nd + j] = lu_bssrdf_spectra_dc(acc, 1);
+            }
             lu_bssrdf_spectra_destroy(acc);
         }
     }
@@ -582,8 +621,10 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
         for (int i = 0; i < base; i++) lu_bssrdf_spectra_destroy(coats[c][i]);
 
     if (r == LU_OK) {
-        /* r_max from the stacked profiles (2 pi r weighted, trapezoid on the line). */
-        double r_max = 0.0;
+        /* Radii from the stacked profiles as for one layer (2 pi r weighted,
+         * trapezoid on the line): R per row, T per row where it matters. */
+        double r_max = 0.0, r_max_t = 0.0;
+        p->d_t_cut = 0.0f;
         for (int t = 0; t < 2; t++)
             for (int c = 0; c < 3; c++)
                 for (int j = 0; j < p->nd; j++) {
@@ -594,20 +635,22 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
                         tot += 0.5 * h * 2.0 * M_PI * (k * h * fmax(ln[k], 0.0) + (k + 1) * h * fmax(ln[k + 1], 0.0));
                         ref += 0.5 * h * 2.0 * M_PI * (k * h * fmax(rl[k], 0.0) + (k + 1) * h * fmax(rl[k + 1], 0.0));
                     }
-                    ref = fmax(ref, tot);
-                    if (tot < desc->epsilon * ref || tot <= 0.0) continue;
+                    if (t == 0 && j == p->nd - 1) p->total_numeric[c] = tot;
+                    if (tot <= 0.0 || (t == 1 && tot < LU_BSSRDF_T_FLOOR * ref)) continue;
                     double cum = 0.0;
                     for (int k = 0; k + 1 < nline; k++) {
                         cum += 0.5 * h * 2.0 * M_PI * (k * h * fmax(ln[k], 0.0) + (k + 1) * h * fmax(ln[k + 1], 0.0));
-                        if (cum >= tot - desc->epsilon * ref) {
-                            r_max = fmax(r_max, (k + 1) * h);
+                        if (cum >= (1.0 - desc->epsilon) * tot) {
+                            if (t) r_max_t = fmax(r_max_t, (k + 1) * h);
+                            else r_max = fmax(r_max, (k + 1) * h);
                             break;
                         }
                     }
-                    if (t == 0 && j == p->nd - 1) p->total_numeric[c] = tot;
+                    if (t) p->d_t_cut = fmaxf(p->d_t_cut, row_thickness(p, j));
                 }
         if (r_max <= 0.0) r_max = reach;
         p->r_max = (float)r_max;
+        p->r_max_t = (float)(r_max_t > 0.0 ? r_max_t : r_max);
         p->table = malloc((size_t)6 * p->nr * p->nd * sizeof *p->table);
         if (!p->table) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the profile tables");
     }
@@ -617,9 +660,25 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
                 for (int c = 0; c < 3; c++) {
                     const float *ln = lines + (size_t)((t * 3 + c) * p->nd + j) * nline;
                     float *row = p->table + (size_t)3 * p->nr * (t * p->nd + j);
+                    float f = t ? expf(fminf(p->t_decay[c] * row_thickness(p, j), LU_BSSRDF_DECAY_CAP)) : 1.0f;
                     /* FFT round-off leaves tiny negative ripples where the profile is ~0. */
+                    float rm = t ? p->r_max_t : p->r_max;
                     for (int i = 0; i < p->nr; i++)
-                        row[3 * i + c] = fmaxf(radial_lerp(ln, nline, h, table_r(i, p->nr, p->r_max)), 0.0f);
+                        row[3 * i + c] = fmaxf(radial_lerp(ln, nline, h, table_r(i, p->nr, rm)), 0.0f);
+                    /* The grid resolves a coat's peak only to a cell; the spectrum's
+                     * DC term is the stack's exact total, so the row (plus what
+                     * lies beyond its radius) is scaled to carry exactly that. */
+                    double tail = 0.0;
+                    for (int k = 0; k + 1 < nline; k++) {
+                        double r0 = k * h, r1 = (k + 1) * h;
+                        if (r1 <= rm) continue;
+                        r0 = fmax(r0, rm);
+                        tail += (r1 - r0) * M_PI * (r0 * fmax(radial_lerp(ln, nline, h, r0), 0.0) +
+                                                    r1 * fmax(radial_lerp(ln, nline, h, r1), 0.0));
+                    }
+                    double have = table_total(row, p->nr, rm, c) + tail, want = dc[(t * 3 + c) * p->nd + j];
+                    float scale = have > 0.0 && want > 0.0 ? (float)(want / have) : 1.0f;
+                    for (int i = 0; i < p->nr; i++) row[3 * i + c] *= scale * f;
                 }
         const float *thick_row = p->table + (size_t)3 * p->nr * (p->nd - 1);
         for (int c = 0; c < 3; c++) {
@@ -630,7 +689,9 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
     free(rad_r);
     free(rad_rb);
     free(rad_t);
+    free(rad_tu);
     free(lines);
+    free(dc);
     return r;
 }
 

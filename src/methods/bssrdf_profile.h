@@ -40,13 +40,22 @@ typedef struct lu_bssrdf_profile_desc {
 /* Defaults: dipole, 512 entries, 32 rows, 10 pairs, eps 0.01, d in [4, 64] mfp, FFT 512. */
 void lu_bssrdf_profile_desc_default(lu_bssrdf_profile_desc *d);
 
+#define LU_BSSRDF_DECAY_CAP 40.0f
+#define LU_BSSRDF_T_FLOOR 1e-4
+
 typedef struct lu_bssrdf_profile {
     int kind;              /* 0: 1D table R(r); 1: 2D tables R(r, d), T(r, d) */
     int nr, nd;
     float r_max;           /* table r in [0, r_max], entry i at r = r_max (i / (nr - 1))^2; zero beyond */
+    float r_max_t;         /* 2D: the same for the T block */
+    float d_t_cut;         /* 2D: T is zero for thicker slabs (it carries < LU_BSSRDF_T_FLOOR of R there) */
     float d_lo, d_hi;      /* 2D: row j at d = d_lo (d_hi / d_lo)^(j / (nd - 1)) */
     float *table;          /* rgb triples: kind 0: nr; kind 1: R block nr*nd then T block (row-major by d) */
     float mfp;             /* longest reduced mean free path of the stack (1 / min sigma_t') */
+    /* 2D: the T block holds T(r, d) e^{min(k d, LU_BSSRDF_DECAY_CAP)} with k the
+     * (base layer's) sigma_tr per channel, which makes it nearly flat along d
+     * so that interpolating between rows stays accurate. */
+    float t_decay[3];
     /* Energy bookkeeping (kind 0; kind 1: the thickest row's reflectance): */
     double total_closed[3];   /* closed form (dipole, Burley: the albedo; multipole: 1D Green's function) */
     double total_numeric[3];  /* Simpson of 2 pi r R(r) over [0, infinity) in log r */
@@ -78,23 +87,29 @@ void lu_bssrdf_slab_totals(double sigma_sp, double sigma_a, double eta_top, doub
 /* ---- multi-layer combination (frequency domain) ------------------------------ */
 
 /* A layer's spectra on a fft_size^2 grid of spacing h, origin at texel
- * (0, 0) with wrap-around: R from above, R from below, T (reciprocal). */
+ * (0, 0) with wrap-around: R from above and from below, T downwards and
+ * upwards (diffusion with different boundary conditions on the two faces is
+ * not reciprocal, so all four are kept). */
 typedef struct lu_bssrdf_spectra lu_bssrdf_spectra;
 
 /* From radial profiles sampled at r_k = k dr, k < n (values beyond: 0). The
  * 2D arrays are scaled so their sums times h^2 equal the Simpson integrals
- * of 2 pi r f(r) (so the DC term carries the exact total). */
-lu_result lu_bssrdf_spectra_from_radial(const float *r_top, const float *r_bottom, const float *t, int n, double dr,
-                                        int fft_size, double h, lu_bssrdf_spectra **out, lu_error *err);
+ * of f over the grid's square (so the DC term carries the exact total). */
+lu_result lu_bssrdf_spectra_from_radial(const float *r_top, const float *r_bottom, const float *t_down,
+                                        const float *t_up, int n, double dr, int fft_size, double h,
+                                        lu_bssrdf_spectra **out, lu_error *err);
 /* The empty layer: R = 0, T = identity (a Dirac delta). */
 lu_result lu_bssrdf_spectra_identity(int fft_size, double h, lu_bssrdf_spectra **out, lu_error *err);
-/* top over bottom (thesis Eq. 3.10, 3.12, with the top layer's reflectance
- * from below in the denominator); out may alias neither input. */
+/* top over bottom (thesis Eq. 3.10, 3.12: T12 = T1 T2 / (1 - R2 R1'),
+ * R12 = R1 + T1 R2 T1' / (1 - R2 R1'), primes for the sides facing each
+ * other); out may alias neither input. */
 lu_result lu_bssrdf_spectra_stack(const lu_bssrdf_spectra *top, const lu_bssrdf_spectra *bottom,
                                   lu_bssrdf_spectra **out, lu_error *err);
-/* Radial profiles of the stack back in space: values at r_k = k h, k < n
- * (n <= fft_size / 2 + 1). */
+/* Radial profiles of the stack back in space (R from above, T downwards):
+ * values at r_k = k h, k < n (n <= fft_size / 2 + 1). */
 lu_result lu_bssrdf_spectra_radial(const lu_bssrdf_spectra *s, float *r_top, float *t, int n, lu_error *err);
+/* The DC term (the plane integral, i.e. the total) of R from above or T downwards. */
+double lu_bssrdf_spectra_dc(const lu_bssrdf_spectra *s, int transmit);
 void lu_bssrdf_spectra_destroy(lu_bssrdf_spectra *s);
 
 /* ---- Monte Carlo ------------------------------------------------------------------

@@ -10,6 +10,7 @@
 
 static const lu_method *const k_methods[] = {
     &lu_method_reference,
+    &lu_method_bssrdf,
 };
 
 const lu_method *const *lu_methods(int *count) {

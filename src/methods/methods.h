@@ -7,6 +7,7 @@
 #include "kernels/lu_optics.h"
 
 extern const lu_method lu_method_reference;
+extern const lu_method lu_method_bssrdf;
 
 /* The kernel-side light record (cone angles as cosines). */
 static inline lu_k_light lu_light_to_kernel(const lu_light *l) {

@@ -1,0 +1,613 @@
+/* The bssrdf method against numbers computed here, independently:
+ *   - dipole: the tabulated profile against the test's own double-precision
+ *     formula, and 2 pi r R_d integrated by Gauss-Legendre against the closed
+ *     form (alpha'/2)(1 + e^{-4/3 A sqrt(3(1-a'))}) e^{-sqrt(3(1-a'))};
+ *   - multipole: R and T integrated over the plane against the 1D diffusion
+ *     Green's function of a slab with extrapolated boundaries (solved here in
+ *     closed form), and R(r, d -> inf) against the dipole;
+ *   - multi-layer: a layer stacked with the empty layer is the layer again,
+ *     and a coated stack's totals follow Kubelka-Munk on the layers' totals;
+ *   - SH9 irradiance of a constant and of a linear environment (exact in
+ *     bands 0 and 1), and the Lambert/Fresnel convolution constants;
+ *   - relaxation makes nearest-neighbour distances more uniform;
+ *   - rendering: a flat slab under a point light equals the direct integral
+ *     of profile x irradiance; slabs under directional light equal the
+ *     multipole totals (R from above, T from below); CPU and GPU agree;
+ *   - the dragon scene (npm data) renders. */
+#include <lucent/lucent.h>
+
+#include <stdio.h>
+#include <string.h>
+
+#include "lu_test.h"
+#include "methods/bssrdf.h"
+#include "methods/bssrdf_profile.h"
+#include "methods/bssrdf_sampling.h"
+#include "kernels/lu_diffusion.h"
+
+/* ---- independent formulas (double precision) ------------------------------------ */
+
+static double fdr(double eta) { return -1.4399 / (eta * eta) + 0.7099 / eta + 0.6681 + 0.0636 * eta; }
+static double bigA(double eta) { return (1.0 + fdr(eta)) / (1.0 - fdr(eta)); }
+
+/* Jensen et al. 2001, Eq. 5 with z_v = z_r (1 + 4A/3). */
+static double dipole(double sp, double sa, double eta, double r) {
+    double st = sp + sa, a = sp / st, zr = 1.0 / st, zv = zr * (1.0 + 4.0 * bigA(eta) / 3.0);
+    double s = sqrt(3.0 * sa * st), dr = sqrt(r * r + zr * zr), dv = sqrt(r * r + zv * zv);
+    return a / (4.0 * M_PI) * (zr * (1.0 + s * dr) * exp(-s * dr) / (dr * dr * dr) +
+                               zv * (1.0 + s * dv) * exp(-s * dv) / (dv * dv * dv));
+}
+
+static double dipole_total(double sp, double sa, double eta) {
+    double a = sp / (sp + sa), q = sqrt(3.0 * (1.0 - a));
+    return 0.5 * a * (1.0 + exp(-4.0 / 3.0 * bigA(eta) * q)) * exp(-q);
+}
+
+/* Slab totals by the 1D Green's function of Phi'' - s^2 Phi = -(a/D) delta(z - l)
+ * with Phi = 0 at z = -zb and z = d + zb: R = D Phi'(0), T = -D Phi'(d). */
+static void slab_totals2(double sp, double sa, double eta_top, double eta_bottom, double d, double *R, double *T) {
+    double st = sp + sa, a = sp / st, l = 1.0 / st, D = l / 3.0, s = sqrt(3.0 * sa * st);
+    double zb0 = 2.0 * bigA(eta_top) * D, zbd = 2.0 * bigA(eta_bottom) * D;
+    double L = d + zb0 + zbd, x0 = l + zb0;
+    *R = a * cosh(s * zb0) * sinh(s * (L - x0)) / sinh(s * L);
+    *T = a * cosh(s * zbd) * sinh(s * x0) / sinh(s * L);
+}
+static void slab_totals(double sp, double sa, double eta, double d, double *R, double *T) {
+    slab_totals2(sp, sa, eta, eta, d, R, T);
+}
+
+static double fresnel_r(double cos_i, double eta) {
+    double c = fabs(cos_i), s2 = (1.0 - c * c) / (eta * eta);
+    if (s2 >= 1.0) return 1.0;
+    double ct = sqrt(1.0 - s2);
+    double rs = (c - eta * ct) / (c + eta * ct), rp = (eta * c - ct) / (eta * c + ct);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+static void gauss_legendre(int n, double *x, double *w) {
+    for (int i = 0; i < n; i++) {
+        double z = cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 1.0;
+        for (int it = 0; it < 100; it++) {
+            double p0 = 1.0, p1 = z;
+            for (int k = 2; k <= n; k++) {
+                double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
+                p0 = p1;
+                p1 = p2;
+            }
+            dp = n * (z * p1 - p0) / (z * z - 1);
+            double dz = p1 / dp;
+            z -= dz;
+            if (fabs(dz) < 1e-15) break;
+        }
+        x[i] = z;
+        w[i] = 2.0 / ((1 - z * z) * dp * dp);
+    }
+}
+
+/* int_a^b f(r) dr by composite 32-node Gauss-Legendre on `panels` pieces,
+ * geometric between a > 0 and b (the profiles vary on the scale of r). */
+typedef double (*rfn)(const void *ctx, double r);
+static double integrate_r(rfn f, const void *ctx, double a, double b, int panels) {
+    static double gx[32], gw[32];
+    static int ready = 0;
+    if (!ready) {
+        gauss_legendre(32, gx, gw);
+        ready = 1;
+    }
+    double sum = 0.0;
+    for (int p = 0; p < panels; p++) {
+        double lo = a * pow(b / a, (double)p / panels), hi = a * pow(b / a, (double)(p + 1) / panels);
+        for (int i = 0; i < 32; i++) sum += 0.5 * (hi - lo) * gw[i] * f(ctx, 0.5 * (hi + lo) + 0.5 * (hi - lo) * gx[i]);
+    }
+    /* [0, a]: the integrands below are 2 pi r f, ~ linear there. */
+    for (int i = 0; i < 32; i++) sum += 0.5 * a * gw[i] * f(ctx, 0.5 * a * (1.0 + gx[i]));
+    return sum;
+}
+
+/* ---- profiles ------------------------------------------------------------------------ */
+
+typedef struct tab_ctx {
+    const lu_bssrdf_profile *p;
+    int ch, transmit;
+    float d;
+} tab_ctx;
+
+static double tab_2pir(const void *vc, double r) {
+    const tab_ctx *c = vc;
+    return 2.0 * M_PI * r * lu_v3_get(lu_bssrdf_profile_eval(c->p, (float)r, c->d, c->transmit), c->ch);
+}
+
+static void test_dipole_profile_and_total(void) {
+    static const char *const names[] = {"marble", "skin1", "ketchup", "wholemilk", "apple"};
+    lu_bssrdf_profile_desc desc;
+    lu_bssrdf_profile_desc_default(&desc);
+    for (int k = 0; k < 5; k++) {
+        const lu_material_preset *p = lu_material_preset_find(names[k]);
+        CHECK(p != NULL);
+        if (!p) continue;
+        lu_bssrdf_layer layer = {lu_v3(p->sigma_s_prime[0], p->sigma_s_prime[1], p->sigma_s_prime[2]),
+                                 lu_v3(p->sigma_a[0], p->sigma_a[1], p->sigma_a[2]), p->eta, 0.0f};
+        lu_bssrdf_profile prof;
+        lu_error err;
+        CHECK_OK(lu_bssrdf_profile_build(&layer, 1, &desc, &prof, &err), &err);
+        for (int c = 0; c < 3; c++) {
+            double sp = p->sigma_s_prime[c], sa = p->sigma_a[c];
+            /* Table entries against the formula, where the profile is not ~0. */
+            for (int i = 0; i < prof.nr; i += 37) {
+                double x = (double)i / (prof.nr - 1), r = prof.r_max * x * x;
+                CHECK_REL(prof.table[3 * i + c], dipole(sp, sa, p->eta, r), 2e-4);
+            }
+            /* The closed form is what Simpson over [0, inf) gives. */
+            CHECK_REL(prof.total_closed[c], dipole_total(sp, sa, p->eta), 1e-5);
+            CHECK_REL(prof.total_numeric[c], dipole_total(sp, sa, p->eta), 1e-5);
+            /* The table, as the renderer interpolates it, holds the total less
+             * what lies beyond r_max: at most eps, at least part of it. */
+            tab_ctx tc = {&prof, c, 0, 0.0f};
+            double t = integrate_r(tab_2pir, &tc, 1e-3 * prof.r_max, prof.r_max, 24);
+            double closed = dipole_total(sp, sa, p->eta);
+            CHECK_MSG(t <= closed * (1.0 + 2e-4) && t >= closed * (1.0 - desc.epsilon - 2e-4),
+                      "%s ch %d: table total %.6f vs closed %.6f", names[k], c, t, closed);
+            /* And the cut is where eps says: the exact tail beyond r_max. */
+            double tail = 0.0;
+            for (int i = 0; i < 4000; i++) {
+                double r0 = prof.r_max * pow(1e4, i / 4000.0), r1 = prof.r_max * pow(1e4, (i + 1) / 4000.0);
+                tail += (r1 - r0) * M_PI * (r0 * dipole(sp, sa, p->eta, r0) + r1 * dipole(sp, sa, p->eta, r1));
+            }
+            CHECK_MSG(tail <= desc.epsilon * closed * 1.01, "%s ch %d: tail %.3g beyond r_max", names[k], c, tail / closed);
+        }
+        lu_bssrdf_profile_destroy(&prof);
+    }
+}
+
+typedef struct mp_ctx {
+    lu_k_diffusion k;
+    int ch, transmit, pairs;
+    float d;
+} mp_ctx;
+
+static double mp_2pir(const void *vc, double r) {
+    const mp_ctx *c = vc;
+    return 2.0 * M_PI * r *
+           lu_k_multipole1((float)r, c->d, c->pairs, c->transmit, lu_v3_get(c->k.sigma_tr, c->ch),
+                           lu_v3_get(c->k.alpha_p, c->ch), lu_v3_get(c->k.l, c->ch), lu_v3_get(c->k.zb_top, c->ch),
+                           lu_v3_get(c->k.zb_bottom, c->ch));
+}
+
+static void test_multipole_totals(void) {
+    /* marble and skin2, slabs from 2 to 60 mean free paths */
+    static const char *const names[] = {"marble", "skin2"};
+    static const double thick_mfp[] = {2.0, 4.0, 10.0, 60.0};
+    for (int k = 0; k < 2; k++) {
+        const lu_material_preset *p = lu_material_preset_find(names[k]);
+        lu_vec3 sp = lu_v3(p->sigma_s_prime[0], p->sigma_s_prime[1], p->sigma_s_prime[2]);
+        lu_vec3 sa = lu_v3(p->sigma_a[0], p->sigma_a[1], p->sigma_a[2]);
+        mp_ctx c = {lu_k_diffusion_make(sp, sa, p->eta, p->eta), 0, 0, 20, 0.0f};
+        for (int ch = 0; ch < 3; ch++) {
+            c.ch = ch;
+            double l = 1.0 / (p->sigma_s_prime[ch] + p->sigma_a[ch]);
+            for (int t = 0; t < 4; t++) {
+                c.d = (float)(thick_mfp[t] * l);
+                double R, T;
+                slab_totals(p->sigma_s_prime[ch], p->sigma_a[ch], p->eta, c.d, &R, &T);
+                double far = 60.0 * l + 60.0 / sqrt(3.0 * p->sigma_a[ch] / l);
+                c.transmit = 0;
+                double rn = integrate_r(mp_2pir, &c, 1e-3 * l, far, 48);
+                c.transmit = 1;
+                double tn = integrate_r(mp_2pir, &c, 1e-3 * l, far, 48);
+                CHECK_MSG(fabs(rn - R) <= 2e-3 * R, "%s ch %d d=%g mfp: R %.6f vs Green %.6f", names[k], ch, thick_mfp[t],
+                          rn, R);
+                CHECK_MSG(fabs(tn - T) <= 2e-3 * R, "%s ch %d d=%g mfp: T %.6f vs Green %.6f", names[k], ch, thick_mfp[t],
+                          tn, T);
+            }
+            /* A thick slab reflects like the half-space: R(r, d) -> dipole. */
+            for (double r = 0.0; r < 20.0 * l; r += 2.5 * l) {
+                double mp = lu_k_multipole1((float)r, (float)(400.0 * l), 10, 0, lu_v3_get(c.k.sigma_tr, ch),
+                                            lu_v3_get(c.k.alpha_p, ch), lu_v3_get(c.k.l, ch), lu_v3_get(c.k.zb_top, ch),
+                                            lu_v3_get(c.k.zb_bottom, ch));
+                CHECK_REL(mp, dipole(p->sigma_s_prime[ch], p->sigma_a[ch], p->eta, r), 1e-4);
+            }
+        }
+    }
+    /* The library's own closed form agrees with this one (its A is computed
+     * in float, hence the tolerance). */
+    double R, T, R2, T2;
+    slab_totals(2.19, 0.0021, 1.3, 3.0, &R, &T);
+    lu_bssrdf_slab_totals(2.19, 0.0021, 1.3, 1.3, 3.0, &R2, &T2);
+    CHECK_REL(R2, R, 1e-6);
+    CHECK_REL(T2, T, 1e-6);
+}
+
+static void test_multilayer(void) {
+    /* A multipole layer on a radial grid, stacked with the empty layer (R = 0,
+     * T = delta) on either side, comes back unchanged. */
+    const lu_material_preset *p = lu_material_preset_find("skin1");
+    lu_vec3 sp = lu_v3(p->sigma_s_prime[0], p->sigma_s_prime[1], p->sigma_s_prime[2]);
+    lu_vec3 sa = lu_v3(p->sigma_a[0], p->sigma_a[1], p->sigma_a[2]);
+    lu_k_diffusion k = lu_k_diffusion_make(sp, sa, p->eta, p->eta);
+    enum { G = 256, N = 2 * G };
+    float d = 6.0f;   /* mm, ~5 mfp in red */
+    double h = 0.1, dr = 1.5 * h * (G / 2) / (N - 1);
+    static float rr[N], tt[N], line_r[G / 2 + 1], line_t[G / 2 + 1];
+    for (int i = 0; i < N; i++) {
+        rr[i] = lu_k_multipole1((float)(i * dr), d, 10, 0, k.sigma_tr.x, k.alpha_p.x, k.l.x, k.zb_top.x, k.zb_bottom.x);
+        tt[i] = lu_k_multipole1((float)(i * dr), d, 10, 1, k.sigma_tr.x, k.alpha_p.x, k.l.x, k.zb_top.x, k.zb_bottom.x);
+    }
+    lu_error err;
+    lu_bssrdf_spectra *layer = NULL, *empty = NULL, *a = NULL, *b = NULL;
+    CHECK_OK(lu_bssrdf_spectra_from_radial(rr, rr, tt, tt, N, dr, G, h, &layer, &err), &err);
+    CHECK_OK(lu_bssrdf_spectra_identity(G, h, &empty, &err), &err);
+    CHECK_OK(lu_bssrdf_spectra_stack(empty, layer, &a, &err), &err);
+    CHECK_OK(lu_bssrdf_spectra_stack(layer, empty, &b, &err), &err);
+    lu_bssrdf_spectra *cases[3] = {layer, a, b};
+    for (int c = 0; c < 3; c++) {
+        if (!cases[c]) continue;
+        CHECK_OK(lu_bssrdf_spectra_radial(cases[c], line_r, line_t, G / 2 + 1, &err), &err);
+        double peak_r = rr[0], peak_t = tt[0];
+        for (int i = 0; i <= G / 2; i += 3) {
+            double x = i * h;
+            int j = (int)(x / dr);
+            double w = x / dr - j;
+            double want_r = rr[j] * (1 - w) + rr[j + 1] * w, want_t = tt[j] * (1 - w) + tt[j + 1] * w;
+            /* The 2D fields are rescaled so their sums match the radial
+             * integrals; that and float FFTs move values by < 1 % of the peak. */
+            CHECK_MSG(fabs(line_r[i] - want_r) <= 1e-2 * peak_r, "case %d r=%g: R %.4g vs %.4g", c, x, line_r[i], want_r);
+            CHECK_MSG(fabs(line_t[i] - want_t) <= 1e-2 * peak_t, "case %d r=%g: T %.4g vs %.4g", c, x, line_t[i], want_t);
+        }
+    }
+    lu_bssrdf_spectra_destroy(a);
+    lu_bssrdf_spectra_destroy(b);
+    lu_bssrdf_spectra_destroy(empty);
+    lu_bssrdf_spectra_destroy(layer);
+
+    /* A coating over a base: the stack's totals (its DC terms) must be the
+     * Kubelka-Munk combination of the layers' closed-form totals, each face
+     * with its own boundary (air above the coat, an index-matched interface
+     * between the layers, air below the base):
+     * R12 = R1 + T1 R2 T1' / (1 - R1' R2), T12 = T1 T2 / (1 - R1' R2),
+     * primes for light travelling upwards (the faces swapped). */
+    lu_bssrdf_layer layers[2] = {{lu_v3(3.0f, 3.0f, 3.0f), lu_v3(0.05f, 0.1f, 0.2f), 1.3f, 1.2f},
+                                 {sp, sa, 1.3f, 0.0f}};
+    lu_bssrdf_profile_desc desc;
+    lu_bssrdf_profile_desc_default(&desc);
+    desc.fft_size = 256;
+    desc.thickness_steps = 4;
+    desc.epsilon = 1e-4;
+    lu_bssrdf_profile prof;
+    CHECK_OK(lu_bssrdf_profile_build(layers, 2, &desc, &prof, &err), &err);
+    if (prof.table) {
+        for (int j = 0; j < prof.nd; j += prof.nd - 1) {
+            float D = prof.d_lo * powf(prof.d_hi / prof.d_lo, (float)j / (float)(prof.nd - 1));
+            for (int c = 0; c < 3; c++) {
+                double R1, T1, R1u, T1u, R2, T2;
+                double s1 = lu_v3_get(layers[0].sigma_sp, c), a1 = lu_v3_get(layers[0].sigma_a, c);
+                slab_totals2(s1, a1, 1.3, 1.0, 1.2, &R1, &T1);
+                slab_totals2(s1, a1, 1.0, 1.3, 1.2, &R1u, &T1u);
+                slab_totals2(lu_v3_get(sp, c), lu_v3_get(sa, c), 1.0, 1.3, D - 1.2, &R2, &T2);
+                double want_r = R1 + T1 * T1u * R2 / (1.0 - R1u * R2), want_t = T1 * T2 / (1.0 - R1u * R2);
+                tab_ctx tr = {&prof, c, 0, D}, ttc = {&prof, c, 1, D};
+                double got_r = integrate_r(tab_2pir, &tr, 1e-3 * prof.r_max, prof.r_max, 24);
+                double got_t = integrate_r(tab_2pir, &ttc, 1e-3 * prof.r_max, prof.r_max, 24);
+                CHECK_MSG(fabs(got_r - want_r) <= 0.01 * want_r, "coated D=%g ch %d: R %.5f vs KM %.5f", D, c, got_r, want_r);
+                CHECK_MSG(fabs(got_t - want_t) <= 0.01 * want_r, "coated D=%g ch %d: T %.5f vs KM %.5f", D, c, got_t, want_t);
+            }
+        }
+    }
+    lu_bssrdf_profile_destroy(&prof);
+}
+
+/* ---- environment ------------------------------------------------------------------------ */
+
+static void test_sh9_irradiance(void) {
+    double a[3];
+    lu_bssrdf_sh_kernel(0.0f, a);
+    CHECK_REL(a[0], M_PI, 1e-9);
+    CHECK_REL(a[1], 2.0 * M_PI / 3.0, 1e-9);
+    CHECK_REL(a[2], M_PI / 4.0, 1e-9);
+    /* With Fresnel: a[0] = pi (1 - F_dr,ext), here by a 2000-panel midpoint rule. */
+    double af[3], ext = 0.0;
+    lu_bssrdf_sh_kernel(1.3f, af);
+    for (int i = 0; i < 2000; i++) {
+        double mu = (i + 0.5) / 2000.0;
+        ext += 2.0 * mu * fresnel_r(mu, 1.3) / 2000.0;
+    }
+    CHECK_REL(af[0], M_PI * (1.0 - ext), 1e-5);
+
+    /* Constant environment L = (1, 2, 3): E = pi L for every normal. A linear
+     * one L = 1 + 0.5 w_y (positive everywhere) has only bands 0 and 1:
+     * E(n) = pi + (2 pi / 3) 0.5 n_y, exactly. */
+    lu_light env;
+    memset(&env, 0, sizeof env);
+    env.type = LU_LIGHT_ENVIRONMENT;
+    env.env_scale = 1.0f;
+    lu_error err;
+    CHECK_OK(lu_image_create(&env.env, 1, 1, &err), &err);
+    env.env.rgb[0] = 1, env.env.rgb[1] = 2, env.env.rgb[2] = 3;
+    double L[27];
+    lu_bssrdf_env_project(&env, L);
+    lu_vec3 dirs[5] = {lu_v3(0, 1, 0), lu_v3(0, -1, 0), lu_v3(1, 0, 0), lu_v3_norm(lu_v3(1, 2, -3)),
+                       lu_v3_norm(lu_v3(-0.3f, 0.1f, 0.9f))};
+    for (int i = 0; i < 5; i++) {
+        lu_vec3 e = lu_bssrdf_sh_irradiance(L, a, dirs[i]);
+        CHECK_REL(e.x, M_PI, 1e-4);
+        CHECK_REL(e.y, 2 * M_PI, 1e-4);
+        CHECK_REL(e.z, 3 * M_PI, 1e-4);
+    }
+    lu_image_destroy(&env.env);
+    /* The linear map at 64 x 32 texels (texel centres at v = (j + 0.5) / 32). */
+    CHECK_OK(lu_image_create(&env.env, 64, 32, &err), &err);
+    for (int y = 0; y < 32; y++)
+        for (int x = 0; x < 64; x++) {
+            /* The bilinear lookup interpolates in v (polar angle), so the map
+             * is exactly linear in w_y only between texel centres: keep the
+             * error tiny by a fine map and a loose but meaningful tolerance. */
+            float wy = cosf((float)M_PI * ((float)y + 0.5f) / 32.0f);
+            float *px = lu_image_px(&env.env, x, y);
+            px[0] = px[1] = px[2] = 1.0f + 0.5f * wy;
+        }
+    lu_bssrdf_env_project(&env, L);
+    for (int i = 0; i < 5; i++) {
+        lu_vec3 e = lu_bssrdf_sh_irradiance(L, a, dirs[i]);
+        double want = M_PI + 2.0 * M_PI / 3.0 * 0.5 * dirs[i].y;
+        CHECK_REL(e.x, want, 3e-3);
+    }
+    lu_image_destroy(&env.env);
+}
+
+static void test_relaxation(void) {
+    lu_kvlist params = {0};
+    double sub = 4;
+    lu_error err;
+    CHECK_OK(lu_kv_set_number(&params, "subdivisions", &sub, 1, &err), &err);
+    lu_mesh sphere = {0};
+    CHECK_OK(lu_mesh_procedural("sphere", &params, &sphere, "test", &err), &err);
+    lu_kv_free(&params);
+    lu_surface_points pts;
+    int n = 600;
+    CHECK_OK(lu_surface_sample(&sphere, n, 3, &pts, &err), &err);
+    double area = lu_mesh_area(&sphere), radius = 2.0 * sqrt(area / n);
+    double m0, cv0;
+    lu_surface_nn_stats(&pts, 2.0 * radius, &m0, &cv0);
+    lu_relax_stats rs;
+    CHECK_OK(lu_surface_relax(&sphere, &pts, radius, 0.02, 200, 1e-3, &rs, &err), &err);
+    double m1, cv1;
+    lu_surface_nn_stats(&pts, 2.0 * radius, &m1, &cv1);
+    fprintf(stderr, "  relaxation: %d iterations, NN mean %.4f -> %.4f, CV %.3f -> %.3f\n", rs.iterations, m0, m1, cv0, cv1);
+    CHECK(cv1 < 0.5 * cv0);      /* random placement: CV ~ 0.5; relaxed: well under half of it */
+    CHECK(m1 > m0);              /* no clumps: the typical gap opens up */
+    CHECK_NEAR(rs.nn_cv_before, cv0, 1e-9);
+    /* Points stay on the surface (the icosphere lies within [0.99, 1] of the centre). */
+    int off = 0;
+    for (int i = 0; i < pts.count; i++) {
+        float r = lu_v3_len(pts.position[i]);
+        off += r < 0.985f || r > 1.0001f;
+        off += fabsf(lu_v3_dot(pts.normal[i], lu_v3_norm(pts.position[i])) - 1.0f) > 0.01f;
+    }
+    CHECK(off == 0);
+    lu_surface_points_destroy(&pts);
+    lu_mesh_destroy(&sphere);
+}
+
+/* ---- rendering ----------------------------------------------------------------------------- */
+
+/* A 50 x 10 x 50 mm slab (top face at y = 0), coefficients per mm. */
+static const double k_sp[3] = {1.0, 1.2, 0.8}, k_sa[3] = {0.3, 0.4, 0.25};
+#define K_ETA 1.3
+
+static bool load(const char *json, lu_scene *s) {
+    lu_error err;
+    lu_result r = lu_scene_load_string(json, "test.json", s, &err);
+    CHECK_OK(r, &err);
+    return r == LU_OK;
+}
+
+static bool render(const lu_scene *s, const char *profile, lu_backend backend, int splats, lu_image *img) {
+    lu_kvlist set = {0};
+    lu_error err;
+    double n = splats, zero = 0, eps = 1e-3, res = 256;
+    lu_kv_set_string(&set, "bssrdf.profile", profile, &err);
+    lu_kv_set_number(&set, "bssrdf.splats", &n, 1, &err);
+    lu_kv_set_number(&set, "bssrdf.jitter", &zero, 1, &err);
+    lu_kv_set_number(&set, "bssrdf.epsilon", &eps, 1, &err);
+    lu_kv_set_number(&set, "bssrdf.map_res", &res, 1, &err);
+    lu_renderer *r = NULL;
+    lu_result rc = lu_renderer_create("bssrdf", s, &set, backend, &r, &err);
+    CHECK_OK(rc, &err);
+    lu_kv_free(&set);
+    if (rc != LU_OK) return false;
+    memset(img, 0, sizeof *img);
+    rc = lu_renderer_render(r, s, img, &err);
+    CHECK_OK(rc, &err);
+    lu_renderer_destroy(r);
+    return rc == LU_OK;
+}
+
+static const char *slab_json(char *buf, size_t n, const char *light) {
+    snprintf(buf, n,
+             "{\"camera\": {\"position\": [0, 60, 0], \"look_at\": [0, 0, 0], \"up\": [0, 0, -1], \"fov_y_deg\": 8,"
+             " \"width\": 20, \"height\": 20},"
+             " \"lights\": [%s],"
+             " \"objects\": [{\"mesh\": {\"procedural\": \"box\", \"size\": [50, 10, 50]},"
+             " \"transform\": {\"translate\": [0, -5, 0]},"
+             " \"material\": {\"type\": \"translucent\", \"sigma_s\": [%g, %g, %g], \"sigma_a\": [%g, %g, %g],"
+             " \"eta\": %g, \"specular\": 0}}]}",
+             light, k_sp[0], k_sp[1], k_sp[2], k_sa[0], k_sa[1], k_sa[2], K_ETA);
+    return buf;
+}
+
+typedef struct conv_ctx {
+    double xo, zo;   /* the shaded point on y = 0 */
+    double ly;       /* light height above the face; at x = z = 0 */
+    int ch;
+    double phi;
+} conv_ctx;
+
+/* E(x) on the top face times the dipole at |x - x_o|, integrated over angle. */
+static double ring(const void *vc, double r) {
+    const conv_ctx *c = vc;
+    enum { NP = 48 };
+    double sum = 0.0;
+    for (int k = 0; k < NP; k++) {
+        double ph = 2.0 * M_PI * (k + 0.5) / NP;
+        double x = c->xo + r * cos(ph), z = c->zo + r * sin(ph);
+        if (fabs(x) > 25.0 || fabs(z) > 25.0) continue;
+        double d2 = x * x + z * z + c->ly * c->ly, d = sqrt(d2), cos_i = c->ly / d;
+        sum += 100.0 * (1.0 - fresnel_r(cos_i, K_ETA)) * cos_i / d2;
+    }
+    return 2.0 * M_PI * r * dipole(k_sp[c->ch], k_sa[c->ch], K_ETA, r) * sum / NP;
+}
+
+static void test_slab_point_light(void) {
+    char json[2048];
+    lu_scene s;
+    if (!load(slab_json(json, sizeof json, "{\"type\": \"point\", \"position\": [0, 8, 0], \"intensity\": [100, 100, 100]}"), &s))
+        return;
+    lu_image img;
+    if (render(&s, "dipole", LU_BACKEND_CPU, 30000, &img)) {
+        double worst = 0.0, sum_got = 0.0, sum_want = 0.0;
+        for (int py = 1; py < s.camera.height; py += 3)
+            for (int px = 1; px < s.camera.width; px += 3) {
+                lu_vec3 o, d;
+                lu_camera_ray(&s.camera, (float)px + 0.5f, (float)py + 0.5f, &o, &d);
+                double t = -o.y / d.y;
+                conv_ctx c = {o.x + t * d.x, o.z + t * d.z, 8.0, 0, 0};
+                double ft_o = 1.0 - fresnel_r(-d.y, K_ETA);
+                for (c.ch = 0; c.ch < 3; c.ch++) {
+                    double l = 1.0 / (k_sp[c.ch] + k_sa[c.ch]);
+                    double want = ft_o / M_PI * integrate_r(ring, &c, 1e-2 * l, 60.0 * l, 24);
+                    double got = lu_image_px(&img, px, py)[c.ch];
+                    worst = fmax(worst, fabs(got - want) / want);
+                    sum_got += got;
+                    sum_want += want;
+                }
+            }
+        fprintf(stderr, "  point-lit slab: worst pixel %.2f %%, mean %.3f %%\n", 100 * worst,
+                100 * (sum_got - sum_want) / sum_want);
+        CHECK(worst < 0.03);
+        CHECK(fabs(sum_got - sum_want) < 0.01 * sum_want);
+        lu_image_destroy(&img);
+    }
+    lu_scene_destroy(&s);
+}
+
+static void test_slab_directional_multipole(void) {
+    /* Uniform irradiance E0 at normal incidence: the splat sum is E0 F_t(0)
+     * times the profile's plane integral, which the Green's function gives. */
+    char json[2048];
+    static const char *const lights[2] = {"{\"type\": \"directional\", \"direction\": [0, 1, 0], \"irradiance\": [2, 2, 2]}",
+                                          "{\"type\": \"directional\", \"direction\": [0, -1, 0], \"irradiance\": [2, 2, 2]}"};
+    for (int below = 0; below < 2; below++) {
+        lu_scene s;
+        if (!load(slab_json(json, sizeof json, lights[below]), &s)) continue;
+        lu_image img;
+        if (render(&s, "multipole", LU_BACKEND_CPU, 40000, &img)) {
+            double worst = 0.0;
+            double ft_in = 1.0 - fresnel_r(1.0, K_ETA);
+            for (int py = 2; py < s.camera.height; py += 5)
+                for (int px = 2; px < s.camera.width; px += 5) {
+                    lu_vec3 o, d;
+                    lu_camera_ray(&s.camera, (float)px + 0.5f, (float)py + 0.5f, &o, &d);
+                    double ft_o = 1.0 - fresnel_r(-d.y, K_ETA);
+                    for (int c = 0; c < 3; c++) {
+                        double R, T;
+                        slab_totals(k_sp[c], k_sa[c], K_ETA, 10.0, &R, &T);
+                        double want = ft_o / M_PI * 2.0 * ft_in * (below ? T : R);
+                        double got = lu_image_px(&img, px, py)[c];
+                        worst = fmax(worst, fabs(got - want) / want);
+                    }
+                }
+            fprintf(stderr, "  slab lit from %s: worst pixel %.2f %% off the multipole %s total\n",
+                    below ? "below" : "above", 100 * worst, below ? "T" : "R");
+            CHECK(worst < 0.02);
+            lu_image_destroy(&img);
+        }
+        lu_scene_destroy(&s);
+    }
+}
+
+static void test_cpu_gpu_agree(void) {
+    char json[2048];
+    lu_scene s;
+    if (!load(slab_json(json, sizeof json, "{\"type\": \"point\", \"position\": [3, 8, -2], \"intensity\": [100, 80, 60]}"), &s))
+        return;
+    static const char *const profiles[2] = {"dipole", "multipole"};
+    for (int p = 0; p < 2; p++) {
+        lu_image a, b;
+        if (!render(&s, profiles[p], LU_BACKEND_CPU, 4000, &a)) continue;
+        if (render(&s, profiles[p], LU_BACKEND_GPU, 4000, &b)) {
+            lu_metrics m;
+            lu_error err;
+            CHECK_OK(lu_image_compare(&b, &a, &m, &err), &err);
+            fprintf(stderr, "  %s: GPU vs CPU rel-L2 %.2e\n", profiles[p], m.rel_l2);
+            CHECK(m.rel_l2 < 1e-4);
+            lu_image_destroy(&b);
+        }
+        lu_image_destroy(&a);
+    }
+    lu_scene_destroy(&s);
+}
+
+static void test_scene_materials(void) {
+    /* Rohat's Table 4.3: marble's imaginary indices give Jensen's sigma_a. */
+    CHECK_REL(lu_sigma_a_from_ior_imag(1.16979e-7f, 700.0f), 0.0021, 1e-3);
+    CHECK_REL(lu_sigma_a_from_ior_imag(1.79447e-7f, 550.0f), 0.0041, 1e-3);
+    CHECK_REL(lu_sigma_a_from_ior_imag(2.40125e-7f, 425.0f), 0.0071, 1e-3);
+    lu_scene s;
+    const char *json =
+        "{\"camera\": {\"position\": [0, 0, 5], \"look_at\": [0, 0, 0]},"
+        " \"objects\": [{\"mesh\": {\"procedural\": \"sphere\", \"subdivisions\": 1},"
+        " \"material\": {\"type\": \"translucent\", \"sigma_s\": [2.19, 2.62, 3.0],"
+        " \"eta_imag\": [1.16979e-7, 1.79447e-7, 2.40125e-7], \"eta\": 1.5, \"mm_per_unit\": 10,"
+        " \"coatings\": [{\"preset\": \"cream\", \"thickness_mm\": 2}]}}]}";
+    if (load(json, &s)) {
+        const lu_material *m = &s.objects[0].material;
+        CHECK_REL(m->sigma_a.x, 0.021, 1e-3);   /* per scene unit: x mm_per_unit */
+        CHECK_REL(m->sigma_s.z, 30.0, 1e-6);
+        CHECK(m->coating_count == 1);
+        CHECK_REL(m->coatings[0].thickness, 0.2, 1e-6);
+        CHECK_REL(m->coatings[0].sigma_s.x, 73.8, 1e-5);
+        lu_scene_destroy(&s);
+    }
+    lu_error err;
+    CHECK(lu_scene_load_string("{\"camera\": {\"position\": [0, 0, 5], \"look_at\": [0, 0, 0]}, \"objects\": [{\"mesh\":"
+                               " {\"procedural\": \"sphere\"}, \"material\": {\"type\": \"translucent\", \"sigma_s\": 1,"
+                               " \"sigma_a\": 1, \"eta_imag\": 1e-7}}]}",
+                               "bad.json", &s, &err) == LU_ERR_SCENE);
+}
+
+static void test_dragon_scene(void) {
+    /* npm data: a missing dataset is a failure, not a skip. */
+    lu_scene s;
+    lu_error err;
+    lu_result r = lu_scene_load(LU_SOURCE_DIR "/scenes/dragon_marble.json", &s, &err);
+    CHECK_OK(r, &err);
+    if (r != LU_OK) return;
+    s.camera.width = 48;
+    s.camera.height = 48;
+    lu_image img;
+    if (render(&s, "dipole", LU_BACKEND_CPU, 1000, &img)) {
+        double sum = 0.0;
+        int finite = 1;
+        for (int i = 0; i < 3 * img.width * img.height; i++) {
+            finite &= isfinite(img.rgb[i]);
+            sum += img.rgb[i];
+        }
+        CHECK(finite);
+        CHECK(sum > 0.0);
+        lu_image_destroy(&img);
+    }
+    lu_scene_destroy(&s);
+}
+
+int main(void) {
+    RUN_TEST(test_dipole_profile_and_total);
+    RUN_TEST(test_multipole_totals);
+    RUN_TEST(test_multilayer);
+    RUN_TEST(test_sh9_irradiance);
+    RUN_TEST(test_relaxation);
+    RUN_TEST(test_scene_materials);
+    RUN_TEST(test_slab_point_light);
+    RUN_TEST(test_slab_directional_multipole);
+    RUN_TEST(test_cpu_gpu_agree);
+    RUN_TEST(test_dragon_scene);
+    TEST_EXIT();
+}
