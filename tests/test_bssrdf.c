@@ -368,7 +368,7 @@ static void test_relaxation(void) {
     double m0, cv0;
     lu_surface_nn_stats(&pts, 2.0 * radius, &m0, &cv0);
     lu_relax_stats rs;
-    CHECK_OK(lu_surface_relax(&sphere, &pts, radius, 0.02, 200, 1e-3, &rs, &err), &err);
+    CHECK_OK(lu_surface_relax(&sphere, &pts, radius, 0.02, 200, 0.01, &rs, &err), &err);
     double m1, cv1;
     lu_surface_nn_stats(&pts, 2.0 * radius, &m1, &cv1);
     fprintf(stderr, "  relaxation: %d iterations, NN mean %.4f -> %.4f, CV %.3f -> %.3f\n", rs.iterations, m0, m1, cv0, cv1);

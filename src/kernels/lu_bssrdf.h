@@ -37,7 +37,7 @@
 #define LU_K_BSSRDF_BUF_VIEW 3      /* per light view: LU_K_BSSRDF_VIEW_FLOATS */
 #define LU_K_BSSRDF_BUF_ENV 4       /* environment maps: rgb texels, row 0 at the top */
 #define LU_K_BSSRDF_BUF_SCENE 5     /* scene constants, LU_K_BSSRDF_SCENE_* below */
-#define LU_K_BSSRDF_MAT_FLOATS 24
+#define LU_K_BSSRDF_MAT_FLOATS 28
 #define LU_K_BSSRDF_LIGHT_FLOATS 16
 #define LU_K_BSSRDF_VIEW_FLOATS 16
 /* Scene constants: */
@@ -56,7 +56,7 @@ struct lu_k_splat {
     vec3 normal;       /* outward */
     int object;        /* scene object index */
     vec3 back;         /* where the light ray leaves the object */
-    float pad0;
+    float level;       /* profile level: 0 point-sampled, k >= 1 averaged over the sample's cell */
     vec3 flux;         /* W per channel, entry Fresnel included */
     float pad1;
 };
@@ -84,6 +84,7 @@ struct lu_k_bssrdf_mat {
     vec3 t_decay;           /* 2D: T rows are stored times e^{min(t_decay d, 40)} (flat along d) */
     float r_max_t;          /* 2D: radius of the T rows */
     float d_t_cut;          /* 2D: no transmission through anything thicker */
+    int level_size;         /* entries in one prefilter level (levels follow each other) */
 };
 LU_TYPEDEF(lu_k_bssrdf_mat)
 
@@ -112,6 +113,7 @@ LU_FN lu_k_bssrdf_mat lu_k_bssrdf_mat_load(LU_CTX_PARAM, int object) {
     m.t_decay = lu_k_bssrdf_fetch3(LU_CTX, b, o + 18);
     m.r_max_t = lu_k_bssrdf_fetch(LU_CTX, b, o + 21);
     m.d_t_cut = lu_k_bssrdf_fetch(LU_CTX, b, o + 22);
+    m.level_size = lu_int(lu_k_bssrdf_fetch(LU_CTX, b, o + 23));
     return m;
 }
 
@@ -163,6 +165,7 @@ LU_FN float lu_k_bssrdf_radius_t(lu_k_bssrdf_mat m, float d) {
 LU_FN vec3 lu_k_bssrdf_splat_eval(LU_CTX_PARAM, lu_k_bssrdf_mat m, lu_k_splat s, vec3 xo, vec3 no) {
     float inv = 1.0f / m.r_scale;
     float rmax2 = m.r_max * m.r_max * m.r_scale * m.r_scale;
+    m.offset += lu_int(s.level) * m.level_size;
     vec3 dv = lu_v3_sub(xo, s.position);
     float r2 = lu_v3_dot(dv, dv);
     vec3 p;

@@ -74,6 +74,7 @@ enum {
     P_RELAX_ITERS,
     P_RELAX_STEP,
     P_RELAX_TOL,
+    P_PREFILTER,
     P_SEED,
     P_STATS,
     P_COUNT
@@ -87,7 +88,9 @@ static const lu_param_desc k_params[P_COUNT] = {
                   "light samples per light and translucent object (an N x M grid over its region of interest)"},
     [P_MAP_RES] = {"map_res", LU_PARAM_INT, 512, 16, 8192, NULL,
                    "side of each light-space map (sample map and shadow map; a point light has six)"},
-    [P_JITTER] = {"jitter", LU_PARAM_FLOAT, 1, 0, 1, NULL, "random offset of each sample within its grid cell (0: cell centres)"},
+    [P_JITTER] = {"jitter", LU_PARAM_FLOAT, 0, 0, 1, NULL,
+                  "random offset of each sample within its grid cell (0: cell centres; with prefiltered profiles "
+                  "the regular grid is a midpoint rule and jitter only adds grain)"},
     [P_TABLE_SIZE] = {"table_size", LU_PARAM_INT, 512, 16, 65536, NULL, "profile table entries along r"},
     [P_THICKNESS_STEPS] = {"thickness_steps", LU_PARAM_INT, 32, 2, 1024, NULL, "2D profiles: rows along thickness"},
     [P_PAIRS] = {"pairs", LU_PARAM_INT, 10, 0, 200, NULL, "multipole: dipole pairs -n..n"},
@@ -95,7 +98,8 @@ static const lu_param_desc k_params[P_COUNT] = {
                    "splat radius r_max: fraction of the reflected power left outside it"},
     [P_D_MIN] = {"d_min", LU_PARAM_FLOAT, 4, 0.5, 1000, NULL, "2D profiles: thinnest row, in mean free paths"},
     [P_D_MAX] = {"d_max", LU_PARAM_FLOAT, 64, 1, 10000, NULL, "2D profiles: thickest row, in mean free paths"},
-    [P_FFT_SIZE] = {"fft_size", LU_PARAM_INT, 512, 16, 4096, NULL, "coated materials: FFT grid side (even)"},
+    [P_FFT_SIZE] = {"fft_size", LU_PARAM_INT, 256, 16, 4096, NULL,
+                    "coated materials: FFT grid side (even); rows keep the exact stacked totals at any size"},
     [P_SPLAT_SCALE] = {"splat_scale", LU_PARAM_FLOAT, 1, 0.05, 20, NULL,
                        "scales every length of the profiles (splat size and look-up radius; thesis Fig. 6.11)"},
     [P_THICKNESS_SCALE] = {"thickness_scale", LU_PARAM_FLOAT, 1, 0.01, 100, NULL,
@@ -108,8 +112,12 @@ static const lu_param_desc k_params[P_COUNT] = {
     [P_RELAX_ITERS] = {"relax_iters", LU_PARAM_INT, 100, 0, 100000, NULL, "environment: most relaxation iterations"},
     [P_RELAX_STEP] = {"relax_step", LU_PARAM_FLOAT, 0.01, 0, 10, NULL,
                       "environment: scale of the repulsion force per iteration (thesis Table 5.4)"},
-    [P_RELAX_TOL] = {"relax_tol", LU_PARAM_FLOAT, 1e-3, 1e-9, 1, NULL,
-                     "environment: stop when the RMS move is below this fraction of the repulsion radius"},
+    [P_RELAX_TOL] = {"relax_tol", LU_PARAM_FLOAT, 0.01, 1e-9, 1, NULL,
+                     "environment: converged when the nearest-neighbour spread improves by less than this over 5 "
+                     "iterations (and points move < 1 % of the repulsion radius)"},
+    [P_PREFILTER] = {"prefilter", LU_PARAM_INT, 12, 0, 32, NULL,
+                     "profile levels averaged over each sample's surface cell (discs growing by sqrt 2 from mfp / 4); "
+                     "0: the thesis' point evaluation"},
     [P_SEED] = {"seed", LU_PARAM_INT, 1, 0, 2147483647, NULL, "random seed of the jitter and the surface samples"},
     [P_STATS] = {"stats", LU_PARAM_BOOL, 0, 0, 1, NULL, "print per-pass timings and counts on stderr"},
 };
@@ -330,6 +338,7 @@ static void fill_material(bssrdf_state *st, int o, const lu_object *ob) {
         m[20] = t->prof.t_decay[2];
         m[21] = t->prof.kind ? t->prof.r_max_t : 0.0f;
         m[22] = t->prof.kind ? t->prof.d_t_cut : 0.0f;
+        m[23] = (float)lu_bssrdf_profile_level_entries(&t->prof);
     }
     m[9] = mat->shininess;
     m[10] = ti >= 0 ? 0.0f : mat->albedo.x;
@@ -341,6 +350,8 @@ static void fill_material(bssrdf_state *st, int o, const lu_object *ob) {
     m[16] = (float)st->p[P_THICKNESS_SCALE];
     m[17] = (float)st->p[P_SPLAT_SCALE];
 }
+
+static float splat_level(const bssrdf_state *st, const tobject *t, double area);
 
 /* Environment splats of translucent object t: samples on its mesh, relaxed,
  * with the Fresnel-weighted SH irradiance as flux and the thickness along -n. */
@@ -377,6 +388,7 @@ static lu_result prepare_env_samples(bssrdf_state *st, const lu_scene *scene, to
             s->normal = pts.normal[i];
             s->object = t->object;
             s->flux = lu_v3_scale(lu_bssrdf_sh_irradiance(L, k, pts.normal[i]), (float)dA);
+            s->level = splat_level(st, t, dA);
             lu_vec3 inward = lu_v3_neg(pts.normal[i]);
             lu_hit h;
             if (lu_accel_closest(t->own, lu_v3_madd(s->position, inward, st->eps), inward, st->eps, 1e30f, &h)) {
@@ -441,6 +453,8 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
         int nl = lu_bssrdf_material_layers(&ob->material, layers, LU_MAX_COATINGS + 1);
         t->eta_top = layers[0].eta;
         r = lu_bssrdf_profile_build(layers, nl, &desc, &t->prof, err);
+        if (r == LU_OK && (int)st->p[P_PREFILTER] > 0)
+            r = lu_bssrdf_profile_prefilter(&t->prof, 1 + (int)st->p[P_PREFILTER], 0.25f * t->prof.mfp, err);
         if (r != LU_OK) {
             char inner[sizeof err->message];
             snprintf(inner, sizeof inner, "%s", err->message);
@@ -456,7 +470,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
     size_t entries = 0;
     for (int i = 0; i < st->tcount; i++) {
         st->t[i].table_offset = (int)entries;
-        entries += (size_t)st->t[i].prof.nr * st->t[i].prof.nd * (st->t[i].prof.kind ? 2 : 1);
+        entries += lu_bssrdf_profile_level_entries(&st->t[i].prof) * st->t[i].prof.levels;
     }
     if (r == LU_OK) {
         st->table_floats = 3 * (entries ? entries : 1);
@@ -468,7 +482,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
     for (int i = 0; i < st->tcount && r == LU_OK; i++) {
         const lu_bssrdf_profile *pr = &st->t[i].prof;
         memcpy(st->table + 3 * (size_t)st->t[i].table_offset, pr->table,
-               3 * sizeof(float) * (size_t)pr->nr * pr->nd * (pr->kind ? 2 : 1));
+               3 * sizeof(float) * lu_bssrdf_profile_level_entries(pr) * pr->levels);
     }
     for (int i = 0; i < scene->object_count && r == LU_OK; i++) fill_material(st, i, &scene->objects[i]);
 
@@ -545,6 +559,19 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
     }
     *out = st;
     return LU_OK;
+}
+
+/* The prefilter level for a sample standing for surface area `area`: a
+ * disc of twice that area (radius sqrt(2 area / pi)), so that neighbouring
+ * samples' discs overlap instead of leaving the gaps discs leave between
+ * square cells; levels sit at rho0 sqrt(2)^(k-1) (in the table's units,
+ * world / r_scale), nearest in log. */
+static float splat_level(const bssrdf_state *st, const tobject *t, double area) {
+    if (t->prof.levels <= 1 || !(area > 0.0)) return 0.0f;
+    double rho = sqrt(2.0 * area / M_PI) / st->p[P_SPLAT_SCALE];
+    double k = 1.0 + 2.0 * log2(rho / t->prof.rho0);
+    if (k < 0.5) return 0.0f;
+    return (float)fmin(floor(k + 0.5), t->prof.levels - 1);
 }
 
 /* ---- per frame: lights and light-space maps ------------------------------------------------ */
@@ -849,6 +876,8 @@ static lu_result make_splats(bssrdf_state *st, const lu_scene *scene, lu_error *
                         s.object = t->object;
                         s.flux = lu_v3_scale(ls.irradiance, (float)(ft * aperp));
                         if (lu_v3_maxc(s.flux) <= 0.0f) continue;
+                        /* the surface area of the cell: its projection over the cosine */
+                        s.level = splat_level(st, t, aperp / fmax(cos_i, 0.05));
                         lu_result r = push_splat(st, &s, err);
                         if (r != LU_OK) return r;
                     }

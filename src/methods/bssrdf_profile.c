@@ -17,7 +17,7 @@ void lu_bssrdf_profile_desc_default(lu_bssrdf_profile_desc *d) {
     d->epsilon = 0.01;
     d->d_min_mfp = 4.0;
     d->d_max_mfp = 64.0;
-    d->fft_size = 512;
+    d->fft_size = 256;
 }
 
 void lu_bssrdf_profile_destroy(lu_bssrdf_profile *p) {
@@ -421,7 +421,11 @@ lu_result lu_bssrdf_spectra_from_radial(const float *r_top, const float *r_botto
     float *work = fftwf_malloc((size_t)fft_size * fft_size * sizeof(float));
     if (!work) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     const float *src[4] = {r_top, r_bottom, t_down, t_up};
-    for (int i = 0; i < 4 && r == LU_OK; i++) r = radial_spectrum(src[i], n, dr, fft_size, h, work, s->c[i], err);
+    size_t nc = (size_t)fft_size * (size_t)(fft_size / 2 + 1);
+    for (int i = 0; i < 4 && r == LU_OK; i++) {
+        if (src[i]) r = radial_spectrum(src[i], n, dr, fft_size, h, work, s->c[i], err);
+        else memset(s->c[i], 0, nc * sizeof(fftwf_complex)); /* not needed (a bottom layer's upward terms) */
+    }
     fftwf_free(work);
     if (r != LU_OK) {
         lu_bssrdf_spectra_destroy(s);
@@ -597,11 +601,11 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
         float d_base = row_thickness(p, j) - (float)coat;
         for (int c = 0; c < 3 && r == LU_OK; c++) {
             lu_bssrdf_spectra *acc = NULL;
+            /* Nothing lies below the base: its upward terms never enter the stack's
+             * R from above or T downwards. */
             sample_radial(kd[base], c, d_base, desc->pairs, 0, nrad, drad, rad_r);
-            sample_radial(flipped(kd[base]), c, d_base, desc->pairs, 0, nrad, drad, rad_rb);
             sample_radial(kd[base], c, d_base, desc->pairs, 1, nrad, drad, rad_t);
-            sample_radial(flipped(kd[base]), c, d_base, desc->pairs, 1, nrad, drad, rad_tu);
-            r = lu_bssrdf_spectra_from_radial(rad_r, rad_rb, rad_t, rad_tu, nrad, drad, g, h, &acc, err);
+            r = lu_bssrdf_spectra_from_radial(rad_r, NULL, rad_t, NULL, nrad, drad, g, h, &acc, err);
             for (int i = base - 1; i >= 0 && r == LU_OK; i--) {
                 lu_bssrdf_spectra *next = NULL;
                 r = lu_bssrdf_spectra_stack(coats[c][i], acc, &next, err);
@@ -695,6 +699,117 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
     return r;
 }
 
+size_t lu_bssrdf_profile_level_entries(const lu_bssrdf_profile *p) {
+    return (size_t)p->nr * p->nd * (p->kind ? 2 : 1);
+}
+
+typedef struct prefilter_job {
+    lu_bssrdf_profile *p;
+    int levels;
+    float rho0;
+    size_t level_entries;
+} prefilter_job;
+
+/* One row (of nr entries) of every level; rows are independent. With the
+ * entry point at the origin and the shaded point at distance r, the disc of
+ * radius rho around the origin seen from the shaded point is, for each
+ * distance t from it, an arc of angle 2 alpha(t):
+ *   P_rho(r) = 1/(pi rho^2) int P(t) 2 t alpha(t) dt,
+ *   alpha = pi for t <= rho - r (whole circles: the cumulative power C),
+ *   alpha = acos((t^2 + r^2 - rho^2) / (2 t r)) for |rho - r| < t < rho + r. */
+static void prefilter_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    enum { NG = 24 };
+    static double gx[NG], gw[NG];
+    static int ready = 0;   /* written identically by every thread: benign */
+    if (!ready) {
+        for (int i = 0; i < NG; i++) {
+            double z = cos(M_PI * (i + 0.75) / (NG + 0.5)), dp = 1.0;
+            for (int it = 0; it < 100; it++) {
+                double p0 = 1.0, p1 = z;
+                for (int k = 2; k <= NG; k++) {
+                    double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
+                    p0 = p1;
+                    p1 = p2;
+                }
+                dp = NG * (z * p1 - p0) / (z * z - 1);
+                double dz = p1 / dp;
+                z -= dz;
+                if (fabs(dz) < 1e-15) break;
+            }
+            gx[i] = z;
+            gw[i] = 2.0 / ((1 - z * z) * dp * dp);
+        }
+        ready = 1;
+    }
+    prefilter_job *j = ctx;
+    lu_bssrdf_profile *p = j->p;
+    int rows_per_level = (int)(j->level_entries / p->nr);
+    double *cum = malloc((size_t)3 * p->nr * sizeof *cum);
+    if (!cum) return;
+    for (int64_t row = begin; row < end; row++) {
+        const float *src = p->table + (size_t)row * 3 * p->nr;
+        bool transmit = p->kind && row >= p->nd;
+        float rm = transmit ? p->r_max_t : p->r_max;
+        /* C(r_i) = int_0^{r_i} 2 pi t P(t) dt, as table_total integrates. */
+        double hx = 1.0 / (p->nr - 1);
+        for (int c = 0; c < 3; c++) cum[c] = 0.0;
+        for (int i = 0; i + 1 < p->nr; i++) {
+            static const double g3x[3] = {-0.7745966692414834, 0.0, 0.7745966692414834};
+            static const double g3w[3] = {5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0};
+            for (int c = 0; c < 3; c++) {
+                double add = 0.0;
+                for (int q = 0; q < 3; q++) {
+                    double w = 0.5 * (1.0 + g3x[q]), x = (i + w) * hx, r = rm * x * x;
+                    double f = src[3 * i + c] * (1.0 - w) + src[3 * (i + 1) + c] * w;
+                    add += 0.5 * hx * g3w[q] * r * f * 2.0 * rm * x;
+                }
+                cum[3 * (i + 1) + c] = cum[3 * i + c] + 2.0 * M_PI * add;
+            }
+        }
+        for (int k = 1; k < j->levels; k++) {
+            double rho = j->rho0 * pow(M_SQRT2, k - 1);
+            float *dst = p->table + ((size_t)k * rows_per_level + (size_t)row) * 3 * p->nr;
+            for (int i = 0; i < p->nr; i++) {
+                double r = table_r(i, p->nr, rm), acc[3] = {0, 0, 0};
+                if (r < rho) { /* whole circles out to rho - r */
+                    double t = rho - r;
+                    double x = t >= rm ? (double)(p->nr - 1) : sqrt(t / rm) * (p->nr - 1);
+                    int a = (int)x;
+                    if (a >= p->nr - 1) a = p->nr - 2;
+                    double w = x - a;
+                    for (int c = 0; c < 3; c++) acc[c] = cum[3 * a + c] * (1.0 - w) + cum[3 * (a + 1) + c] * w;
+                }
+                double t0 = fabs(rho - r), t1 = fmin(rho + r, (double)rm);
+                if (r > 0.0 && t1 > t0) {
+                    for (int q = 0; q < NG; q++) {
+                        double t = 0.5 * (t0 + t1) + 0.5 * (t1 - t0) * gx[q];
+                        double ca = (t * t + r * r - rho * rho) / (2.0 * t * r);
+                        double alpha = acos(fmin(fmax(ca, -1.0), 1.0));
+                        double wq = 0.5 * (t1 - t0) * gw[q] * 2.0 * t * alpha;
+                        for (int c = 0; c < 3; c++) acc[c] += wq * table_lerp(src, p->nr, rm, (float)t, c);
+                    }
+                }
+                for (int c = 0; c < 3; c++) dst[3 * i + c] = (float)(acc[c] / (M_PI * rho * rho));
+            }
+        }
+    }
+    free(cum);
+}
+
+lu_result lu_bssrdf_profile_prefilter(lu_bssrdf_profile *p, int levels, float rho0, lu_error *err) {
+    if (levels <= 1 || p->levels != 1) return LU_OK;
+    if (!(rho0 > 0.0f)) return lu_fail(err, LU_ERR_RANGE, "bssrdf: prefilter radius must be > 0");
+    size_t per = lu_bssrdf_profile_level_entries(p);
+    float *t = realloc(p->table, (size_t)levels * per * 3 * sizeof *t);
+    if (!t) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for %d profile levels", levels);
+    p->table = t;
+    p->levels = levels;
+    p->rho0 = rho0;
+    prefilter_job j = {p, levels, rho0, per};
+    lu_parallel_for((int64_t)(per / p->nr), 1, prefilter_rows, &j, NULL);
+    return LU_OK;
+}
+
 lu_result lu_bssrdf_profile_build(const lu_bssrdf_layer *layers, int count, const lu_bssrdf_profile_desc *desc,
                                   lu_bssrdf_profile *out, lu_error *err) {
     memset(out, 0, sizeof *out);
@@ -719,6 +834,7 @@ lu_result lu_bssrdf_profile_build(const lu_bssrdf_layer *layers, int count, cons
             return lu_fail(err, LU_ERR_RANGE, "bssrdf: coating %d needs a thickness > 0", i);
     }
     out->mfp = (float)mfp;
+    out->levels = 1;
     lu_result r;
     if (count > 1) r = build_layers(layers, count, desc, out, err);
     else if (desc->model == LU_BSSRDF_MULTIPOLE) r = build_multipole(layers, desc, out, err);

@@ -37,7 +37,7 @@ typedef struct lu_bssrdf_profile_desc {
     int fft_size;          /* multi-layer: FFT grid side */
 } lu_bssrdf_profile_desc;
 
-/* Defaults: dipole, 512 entries, 32 rows, 10 pairs, eps 0.01, d in [4, 64] mfp, FFT 512. */
+/* Defaults: dipole, 512 entries, 32 rows, 10 pairs, eps 0.01, d in [4, 64] mfp, FFT 256. */
 void lu_bssrdf_profile_desc_default(lu_bssrdf_profile_desc *d);
 
 #define LU_BSSRDF_DECAY_CAP 40.0f
@@ -50,7 +50,10 @@ typedef struct lu_bssrdf_profile {
     float r_max_t;         /* 2D: the same for the T block */
     float d_t_cut;         /* 2D: T is zero for thicker slabs (it carries < LU_BSSRDF_T_FLOOR of R there) */
     float d_lo, d_hi;      /* 2D: row j at d = d_lo (d_hi / d_lo)^(j / (nd - 1)) */
-    float *table;          /* rgb triples: kind 0: nr; kind 1: R block nr*nd then T block (row-major by d) */
+    float *table;          /* rgb triples: kind 0: nr; kind 1: R block nr*nd then T block (row-major by d);
+                            * `levels` such tables one after the other (see lu_bssrdf_profile_prefilter) */
+    int levels;            /* 1 until prefiltered */
+    float rho0;            /* level k >= 1 is averaged over discs of radius rho0 sqrt(2)^(k - 1) */
     float mfp;             /* longest reduced mean free path of the stack (1 / min sigma_t') */
     /* 2D: the T block holds T(r, d) e^{min(k d, LU_BSSRDF_DECAY_CAP)} with k the
      * (base layer's) sigma_tr per channel, which makes it nearly flat along d
@@ -65,6 +68,17 @@ typedef struct lu_bssrdf_profile {
 lu_result lu_bssrdf_profile_build(const lu_bssrdf_layer *layers, int layer_count, const lu_bssrdf_profile_desc *desc,
                                   lu_bssrdf_profile *out, lu_error *err);
 void lu_bssrdf_profile_destroy(lu_bssrdf_profile *p);
+
+/* Adds levels 1 .. levels-1: the profile averaged over a disc of radius
+ * rho_k = rho0 sqrt(2)^(k-1) around the entry point,
+ *   P_k(r) = 1/(pi rho_k^2) int_{|y| < rho_k} P(|x - y|) dy,  |x| = r,
+ * so that a sample standing for a surface cell of that size adds the
+ * profile integrated over its cell (a quadrature exact for irradiance
+ * constant over the cell) instead of the profile at one point. Level 0
+ * stays the point-sampled profile. */
+lu_result lu_bssrdf_profile_prefilter(lu_bssrdf_profile *p, int levels, float rho0, lu_error *err);
+/* Entries (rgb triples) in one level. */
+size_t lu_bssrdf_profile_level_entries(const lu_bssrdf_profile *p);
 
 /* Table lookups on the CPU (the renderer uses the kernel lu_bssrdf.h, which
  * reads the same layout). */
@@ -92,7 +106,8 @@ void lu_bssrdf_slab_totals(double sigma_sp, double sigma_a, double eta_top, doub
  * not reciprocal, so all four are kept). */
 typedef struct lu_bssrdf_spectra lu_bssrdf_spectra;
 
-/* From radial profiles sampled at r_k = k dr, k < n (values beyond: 0). The
+/* From radial profiles sampled at r_k = k dr, k < n (values beyond: 0); a
+ * NULL profile gives zero spectra (for terms a caller knows it never uses). The
  * 2D arrays are scaled so their sums times h^2 equal the Simpson integrals
  * of f over the grid's square (so the DC term carries the exact total). */
 lu_result lu_bssrdf_spectra_from_radial(const float *r_top, const float *r_bottom, const float *t_down,

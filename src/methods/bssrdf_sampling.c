@@ -465,6 +465,12 @@ lu_result lu_surface_relax(const lu_mesh *mesh, lu_surface_points *pts, double r
     lu_vec3 *force = malloc((size_t)pts->count * sizeof *force);
     double *moved2 = malloc((size_t)pts->count * sizeof *moved2);
     if (!force || !moved2) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+    /* "Until uniform" (thesis listing 5.11): the nearest-neighbour spread has
+     * stopped improving (by less than tol, relative, over the last 5
+     * iterations) and the points have settled (RMS move under 1 % of the
+     * radius; a step too large keeps them jumping back and forth). */
+    double cv_hist[5];
+    for (int i = 0; i < 5; i++) cv_hist[i] = stats->nn_cv_before;
     for (int it = 0; it < max_iters && r == LU_OK; it++) {
         pgrid g;
         r = pgrid_build(&g, pts, radius, err);
@@ -478,7 +484,11 @@ lu_result lu_surface_relax(const lu_mesh *mesh, lu_surface_points *pts, double r
         stats->iterations = it + 1;
         stats->last_rms_move = sqrt(sum / pts->count) / radius;
         if (!isfinite(stats->last_rms_move)) break;
-        if (stats->last_rms_move < tol) {
+        double mean, cv;
+        lu_surface_nn_stats(pts, 2.0 * radius, &mean, &cv);
+        double gain = (cv_hist[it % 5] - cv) / fmax(cv_hist[it % 5], 1e-12);
+        cv_hist[it % 5] = cv;
+        if (it >= 4 && gain < tol && stats->last_rms_move < 0.01) {
             stats->converged = true;
             break;
         }

@@ -23,7 +23,7 @@ lu_result lu_surface_sample(const lu_mesh *mesh, int count, uint64_t seed, lu_su
 
 typedef struct lu_relax_stats {
     int iterations;
-    bool converged;          /* the RMS move fell below tol * radius */
+    bool converged;          /* uniformity stopped improving and the points settled */
     double seconds;
     double last_rms_move;    /* relative to the radius */
     double nn_mean_before, nn_cv_before;   /* nearest-neighbour distance: mean, std / mean */
@@ -34,7 +34,9 @@ typedef struct lu_relax_stats {
  * neighbour closer than radius pushes with (radius - d) along the direction
  * from it, taken in the pivot's tangent plane; all forces are computed, then
  * every point moves by step * force (thesis listing 5.11). Stops after
- * max_iters or when the RMS move drops below tol * radius. */
+ * max_iters, or once converged: the nearest-neighbour distances' coefficient
+ * of variation improved by less than tol (relative) over 5 iterations and
+ * the RMS move is under 1 % of the radius. */
 lu_result lu_surface_relax(const lu_mesh *mesh, lu_surface_points *pts, double radius, double step, int max_iters,
                            double tol, lu_relax_stats *stats, lu_error *err);
 
