@@ -49,7 +49,7 @@
 #define LU_K_BSSRDF_SCENE_ENV_INFO 33   /* per map: first texel, width, height, scale */
 #define LU_K_BSSRDF_SCENE_FLOATS 64     /* (up to 7 environment maps) */
 
-/* One splat (std430-compatible: every vec3 is followed by a 4-byte scalar). */
+/* One splat, 80 bytes (std430-compatible: every vec3 is followed by a 4-byte scalar). */
 struct lu_k_splat {
     vec3 position;
     float thickness;   /* light-space thickness behind x_s (2D profiles) */
@@ -58,7 +58,9 @@ struct lu_k_splat {
     vec3 back;         /* where the light ray leaves the object */
     float level;       /* profile level: 0 point-sampled, k >= 1 averaged over the sample's cell */
     vec3 flux;         /* W per channel, entry Fresnel included */
-    float pad1;
+    float row;         /* 2D profiles: thickness as a row coordinate (lu_k_bssrdf_splat_finish) */
+    vec3 flux_t;       /* 2D profiles: flux times e^{-t_decay d}, what the T rows multiply; 0 past d_t_cut */
+    float pad0;
 };
 LU_TYPEDEF(lu_k_splat)
 
@@ -131,26 +133,39 @@ LU_FN vec3 lu_k_bssrdf_row(LU_CTX_PARAM, int base, int nr, float r, float r_max)
     return lu_v3_add(lu_v3_scale(a, 1.0f - w), lu_v3_scale(b, w));
 }
 
-/* Profile value at r (and thickness d for 2D tables; rows at d_lo (d_hi /
- * d_lo)^(j / (nd - 1)), clamped at both ends), in the table's own units. */
-LU_FN vec3 lu_k_bssrdf_profile(LU_CTX_PARAM, lu_k_bssrdf_mat m, float r, float d, int transmit) {
-    if (m.kind == 0) return transmit != 0 ? lu_v3s(0.0f) : lu_k_bssrdf_row(LU_CTX, m.offset, m.nr, r, m.r_max);
+/* Row coordinate of thickness d (table units) in a 2D table: rows at d_lo
+ * (d_hi / d_lo)^(j / (nd - 1)), clamped at both ends. */
+LU_FN float lu_k_bssrdf_row_coord(lu_k_bssrdf_mat m, float d) {
     float y = lu_log(lu_max(d, m.d_lo) / m.d_lo) / lu_log(m.d_hi / m.d_lo) * lu_float(m.nd - 1);
-    y = lu_clamp(y, 0.0f, lu_float(m.nd - 1));
+    return lu_clamp(y, 0.0f, lu_float(m.nd - 1));
+}
+
+/* A 2D table (R block, or the T block when transmit != 0) at r and row
+ * coordinate y, in the table's own units; T rows come out still multiplied
+ * by e^{t_decay d} (the splat's flux_t carries the inverse). */
+LU_FN vec3 lu_k_bssrdf_profile2(LU_CTX_PARAM, lu_k_bssrdf_mat m, float r, float y, int transmit) {
     int j = lu_int(y);
     if (j > m.nd - 2) j = m.nd - 2;
     float w = y - lu_float(j);
     int block = m.offset + (transmit != 0 ? m.nr * m.nd : 0);
     float rm = transmit != 0 ? m.r_max_t : m.r_max;
-    if (transmit != 0 && d > m.d_t_cut) return lu_v3s(0.0f);
     vec3 a = lu_k_bssrdf_row(LU_CTX, block + j * m.nr, m.nr, r, rm);
     vec3 b = lu_k_bssrdf_row(LU_CTX, block + (j + 1) * m.nr, m.nr, r, rm);
-    vec3 v = lu_v3_add(lu_v3_scale(a, 1.0f - w), lu_v3_scale(b, w));
-    if (transmit != 0) {
-        vec3 k = lu_v3_scale(m.t_decay, d);
-        v = lu_v3_mul(v, lu_v3(lu_exp(-lu_min(k.x, 40.0f)), lu_exp(-lu_min(k.y, 40.0f)), lu_exp(-lu_min(k.z, 40.0f))));
-    }
-    return v;
+    return lu_v3_add(lu_v3_scale(a, 1.0f - w), lu_v3_scale(b, w));
+}
+
+/* Fills the per-splat terms of 2D profiles (row, flux_t) once, so the
+ * per-pixel loop does no logarithm or exponential. */
+LU_FN lu_k_splat lu_k_bssrdf_splat_finish(lu_k_bssrdf_mat m, lu_k_splat s) {
+    s.row = 0.0f;
+    s.flux_t = lu_v3s(0.0f);
+    if (m.kind == 0) return s;
+    float d = s.thickness * m.thickness_scale / m.r_scale;
+    s.row = lu_k_bssrdf_row_coord(m, d);
+    if (d > m.d_t_cut) return s;
+    vec3 k = lu_v3_scale(m.t_decay, d);
+    s.flux_t = lu_v3_mul(s.flux, lu_v3(lu_exp(-lu_min(k.x, 40.0f)), lu_exp(-lu_min(k.y, 40.0f)), lu_exp(-lu_min(k.z, 40.0f))));
+    return s;
 }
 
 /* World radius of a splat of material m around x_s (reflection), and around
@@ -161,28 +176,31 @@ LU_FN float lu_k_bssrdf_radius_t(lu_k_bssrdf_mat m, float d) {
     return m.r_max_t * m.r_scale;
 }
 
-/* Phi_s P_s(x_o): what splat s adds at visible point x_o (normal n_o). */
+/* Phi_s P_s(x_o): what splat s (finished by lu_k_bssrdf_splat_finish)
+ * adds at visible point x_o (normal n_o). */
 LU_FN vec3 lu_k_bssrdf_splat_eval(LU_CTX_PARAM, lu_k_bssrdf_mat m, lu_k_splat s, vec3 xo, vec3 no) {
     float inv = 1.0f / m.r_scale;
     float rmax2 = m.r_max * m.r_max * m.r_scale * m.r_scale;
     m.offset += lu_int(s.level) * m.level_size;
     vec3 dv = lu_v3_sub(xo, s.position);
     float r2 = lu_v3_dot(dv, dv);
-    vec3 p;
     if (m.kind == 0) {
         if (r2 >= rmax2) return lu_v3s(0.0f);
-        p = lu_k_bssrdf_row(LU_CTX, m.offset, m.nr, lu_sqrt(r2) * inv, m.r_max);
-    } else {
-        float c = lu_clamp(lu_v3_dot(s.normal, no), -1.0f, 1.0f);
-        float d = s.thickness * m.thickness_scale * inv;
-        p = lu_v3s(0.0f);
-        if (r2 < rmax2 && c > -1.0f) p = lu_v3_scale(lu_k_bssrdf_profile(LU_CTX, m, lu_sqrt(r2) * inv, d, 0), 0.5f * (1.0f + c));
+        vec3 p = lu_k_bssrdf_row(LU_CTX, m.offset, m.nr, lu_sqrt(r2) * inv, m.r_max);
+        return lu_v3_scale(lu_v3_mul(s.flux, p), inv * inv);
+    }
+    float c = lu_clamp(lu_v3_dot(s.normal, no), -1.0f, 1.0f);
+    vec3 acc = lu_v3s(0.0f);
+    if (r2 < rmax2 && c > -1.0f)
+        acc = lu_v3_scale(lu_v3_mul(s.flux, lu_k_bssrdf_profile2(LU_CTX, m, lu_sqrt(r2) * inv, s.row, 0)), 0.5f * (1.0f + c));
+    if (c < 1.0f && lu_v3_maxc(s.flux_t) > 0.0f) {
         vec3 dt = lu_v3_sub(xo, s.back);
         float t2 = lu_v3_dot(dt, dt);
-        if (t2 < m.r_max_t * m.r_max_t * m.r_scale * m.r_scale && c < 1.0f)
-            p = lu_v3_add(p, lu_v3_scale(lu_k_bssrdf_profile(LU_CTX, m, lu_sqrt(t2) * inv, d, 1), 0.5f * (1.0f - c)));
+        if (t2 < m.r_max_t * m.r_max_t * m.r_scale * m.r_scale)
+            acc = lu_v3_add(acc, lu_v3_scale(lu_v3_mul(s.flux_t, lu_k_bssrdf_profile2(LU_CTX, m, lu_sqrt(t2) * inv, s.row, 1)),
+                                              0.5f * (1.0f - c)));
     }
-    return lu_v3_scale(lu_v3_mul(s.flux, p), inv * inv);
+    return lu_v3_scale(acc, inv * inv);
 }
 
 /* ---- screen-space support --------------------------------------------------------- */

@@ -54,6 +54,10 @@ static inline float lu_k_shadow_depth(const struct lu_k_ctx *c, int map, int i, 
 #include "kernels/lu_camera.h"
 #include "kernels/lu_sh.h"
 
+/* The GPU reads these arrays with the std430 layout of the same structs. */
+_Static_assert(sizeof(lu_k_splat) == 80, "lu_k_splat must match its std430 layout");
+_Static_assert(sizeof(lu_k_gbuf) == 32, "lu_k_gbuf must match its std430 layout");
+
 enum {
     P_PROFILE,
     P_SPLATS,
@@ -891,6 +895,8 @@ static lu_result make_splats(bssrdf_state *st, const lu_scene *scene, lu_error *
             if (r != LU_OK) return r;
             st->stats.env_splats++;
         }
+    for (int i = 0; i < st->splat_count; i++)
+        st->splats[i] = lu_k_bssrdf_splat_finish(lu_k_bssrdf_mat_load(&st->kctx, st->splats[i].object), st->splats[i]);
     st->stats.splats = st->splat_count;
     return LU_OK;
 }
@@ -984,29 +990,42 @@ static lu_result bin_splats(bssrdf_state *st, frame_job *j, lu_error *err) {
     return LU_OK;
 }
 
+/* Per tile: splat-major (each splat of the tile's list over the tile's
+ * pixels, which stay in L1), then the deferred pass per pixel. The GPU
+ * shader runs pixel-major; the sums differ only in float rounding order. */
 static void splat_tiles(void *ctx, int64_t begin, int64_t end, int thread) {
     frame_job *j = ctx;
     bssrdf_state *st = j->st;
     const struct lu_k_ctx *kc = &st->kctx;
+    lu_k_gbuf g[TILE * TILE];
+    lu_vec3 scatter[TILE * TILE];
+    lu_k_bssrdf_mat mat[TILE * TILE];
     for (int64_t tile = begin; tile < end; tile++) {
         int tx = (int)(tile % j->tiles_x), ty = (int)(tile / j->tiles_x);
-        int s0 = st->tile_start[tile], s1 = st->tile_start[tile + 1];
-        for (int y = ty * TILE; y < ty * TILE + TILE && y < j->height; y++)
-            for (int x = tx * TILE; x < tx * TILE + TILE && x < j->width; x++) {
-                lu_k_gbuf g = st->gbuf[(size_t)y * j->width + x];
-                lu_vec3 scatter = lu_v3s(0.0f);
-                if (g.object >= 0) {
-                    lu_k_bssrdf_mat m = lu_k_bssrdf_mat_load(kc, g.object);
-                    if (m.translucent)
-                        for (int k = s0; k < s1; k++) {
-                            const lu_k_splat *s = &st->splats[st->tile_list[k]];
-                            if (s->object != g.object) continue;
-                            scatter = lu_v3_add(scatter, lu_k_bssrdf_splat_eval(kc, m, *s, g.position, g.normal));
-                        }
-                }
-                lu_vec3 d = lu_k_camera_dir(j->cam, (float)x + 0.5f, (float)y + 0.5f);
-                lu_vec3 c = lu_k_bssrdf_shade(kc, g, scatter, d);
-                float *px = lu_image_px(j->out, x, y);
+        int x0 = tx * TILE, y0 = ty * TILE;
+        int w = j->width - x0 < TILE ? j->width - x0 : TILE, h = j->height - y0 < TILE ? j->height - y0 : TILE;
+        int n = 0, any = 0;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++, n++) {
+                g[n] = st->gbuf[(size_t)(y0 + y) * j->width + (x0 + x)];
+                scatter[n] = lu_v3s(0.0f);
+                mat[n].translucent = 0;
+                if (g[n].object >= 0) mat[n] = lu_k_bssrdf_mat_load(kc, g[n].object);
+                any |= g[n].object >= 0 && mat[n].translucent;
+            }
+        for (int k = st->tile_start[tile]; any && k < st->tile_start[tile + 1]; k++) {
+            const lu_k_splat s = st->splats[st->tile_list[k]];
+            for (int i = 0; i < n; i++) {
+                if (g[i].object != s.object || !mat[i].translucent) continue;
+                scatter[i] = lu_v3_add(scatter[i], lu_k_bssrdf_splat_eval(kc, mat[i], s, g[i].position, g[i].normal));
+            }
+        }
+        n = 0;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++, n++) {
+                lu_vec3 d = lu_k_camera_dir(j->cam, (float)(x0 + x) + 0.5f, (float)(y0 + y) + 0.5f);
+                lu_vec3 c = lu_k_bssrdf_shade(kc, g[n], scatter[n], d);
+                float *px = lu_image_px(j->out, x0 + x, y0 + y);
                 px[0] = c.x;
                 px[1] = c.y;
                 px[2] = c.z;
@@ -1053,6 +1072,7 @@ static lu_result bssrdf_render(void *state, const lu_scene *scene, lu_image *out
         f.map_res = res;
         f.splats = st->splats;
         f.splat_count = st->splat_count;
+        f.splat_bytes = sizeof(lu_k_splat);
         f.gbuf = st->gbuf;
         f.width = c->width;
         f.height = c->height;

@@ -78,7 +78,7 @@ lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, l
     int ntiles = f->tiles_x * f->tiles_y;
     lu_result r = put(g, B_DATA, g->staging, total * sizeof(float), err);
     if (r == LU_OK) r = put(g, B_SHADOW, f->shadow, f->shadow_count * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_SPLATS, f->splats, (size_t)f->splat_count * 64, err);
+    if (r == LU_OK) r = put(g, B_SPLATS, f->splats, (size_t)f->splat_count * f->splat_bytes, err);
     if (r == LU_OK) r = put(g, B_GBUF, f->gbuf, pixels * 32, err);
     if (r == LU_OK) r = put(g, B_TSTART, f->tile_start, ((size_t)ntiles + 1) * sizeof(int), err);
     if (r == LU_OK) r = put(g, B_TLIST, f->tile_list, f->list_count * sizeof(int), err);

@@ -19,7 +19,8 @@ typedef struct lu_bssrdf_gpu_frame {
     int map_res;
     const void *splats;         /* lu_k_splat[splat_count] */
     int splat_count;
-    const void *gbuf;           /* lu_k_gbuf[width * height] */
+    size_t splat_bytes;         /* sizeof(lu_k_splat) */
+    const void *gbuf;           /* lu_k_gbuf[width * height], 32 bytes each */
     int width, height;
     const int *tile_start;      /* tiles_x * tiles_y + 1 offsets into tile_list */
     int tiles_x, tiles_y, tile;
