@@ -111,18 +111,15 @@ lu_result lu_grid_load_raw(const char *path, int nx, int ny, int nz, lu_grid *g,
         return lu_fail(err, LU_ERR_LIMIT, "%s: raw grid of %d x %d x %d voxels exceeds the limit of %llu voxels", path,
                        nx, ny, nz, (unsigned long long)LU_MAX_GRID_VOXELS);
     uint64_t expect = xy * (uint64_t)nz * 4u;
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return lu_fail(err, LU_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    struct stat st;
-    if (fstat(fileno(fp), &st) != 0 || !S_ISREG(st.st_mode)) {
-        fclose(fp);
-        return lu_fail(err, LU_ERR_IO, "%s: not a regular file", path);
-    }
-    if ((uint64_t)st.st_size != expect) {
+    FILE *fp;
+    uint64_t file_size;
+    lu_result opened = lu_open_regular(path, (void **)&fp, &file_size, err);
+    if (opened != LU_OK) return opened;
+    if (file_size != expect) {
         fclose(fp);
         return lu_fail(err, LU_ERR_FORMAT,
-                       "%s: raw float32 grid of %d x %d x %d voxels needs %llu bytes, but the file has %lld bytes", path,
-                       nx, ny, nz, (unsigned long long)expect, (long long)st.st_size);
+                       "%s: raw float32 grid of %d x %d x %d voxels needs %llu bytes, but the file has %llu bytes", path,
+                       nx, ny, nz, (unsigned long long)expect, (unsigned long long)file_size);
     }
     lu_result r = lu_grid_alloc(g, nx, ny, nz, err);
     if (r != LU_OK) {
