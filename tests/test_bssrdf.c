@@ -2,6 +2,7 @@
  *   - dipole: the tabulated profile against the test's own double-precision
  *     formula, and 2 pi r R_d integrated by Gauss-Legendre against the closed
  *     form (alpha'/2)(1 + e^{-4/3 A sqrt(3(1-a'))}) e^{-sqrt(3(1-a'))};
+ *   - prefiltered levels keep the power and hold the disc's power at r = 0;
  *   - multipole: R and T integrated over the plane against the 1D diffusion
  *     Green's function of a slab with extrapolated boundaries (solved here in
  *     closed form), and R(r, d -> inf) against the dipole;
@@ -157,6 +158,45 @@ static void test_dipole_profile_and_total(void) {
         }
         lu_bssrdf_profile_destroy(&prof);
     }
+}
+
+/* Prefiltered levels: each is the profile averaged over a disc, so it keeps
+ * the power (up to what the disc spreads past r_max), and at r = 0 it is
+ * the power inside the disc over its area. */
+static void test_prefilter_levels(void) {
+    const lu_material_preset *p = lu_material_preset_find("skin2");
+    lu_bssrdf_layer layer = {lu_v3(p->sigma_s_prime[0], p->sigma_s_prime[1], p->sigma_s_prime[2]),
+                             lu_v3(p->sigma_a[0], p->sigma_a[1], p->sigma_a[2]), p->eta, 0.0f};
+    lu_bssrdf_profile_desc desc;
+    lu_bssrdf_profile_desc_default(&desc);
+    desc.epsilon = 1e-4;
+    lu_bssrdf_profile prof;
+    lu_error err;
+    CHECK_OK(lu_bssrdf_profile_build(&layer, 1, &desc, &prof, &err), &err);
+    float rho0 = 0.25f * prof.mfp;
+    CHECK_OK(lu_bssrdf_profile_prefilter(&prof, 9, rho0, &err), &err);
+    CHECK(prof.levels == 9);
+    size_t per = lu_bssrdf_profile_level_entries(&prof);
+    for (int k = 1; k < prof.levels; k++) {
+        double rho = rho0 * pow(M_SQRT2, k - 1);
+        lu_bssrdf_profile lv = prof;   /* a view of level k */
+        lv.table = prof.table + 3 * per * k;
+        for (int c = 0; c < 3; c++) {
+            double sp = p->sigma_s_prime[c], sa = p->sigma_a[c];
+            tab_ctx t0 = {&prof, c, 0, 0.0f}, tk = {&lv, c, 0, 0.0f};
+            double e0 = integrate_r(tab_2pir, &t0, 1e-3 * prof.r_max, prof.r_max, 24);
+            double ek = integrate_r(tab_2pir, &tk, 1e-3 * prof.r_max, prof.r_max, 24);
+            CHECK_MSG(fabs(ek - e0) <= 2e-3 * e0, "level %d ch %d: power %.5f vs %.5f", k, c, ek, e0);
+            /* Power of the dipole inside rho, by the test's own quadrature. */
+            double inside = 0.0;
+            for (int i = 0; i < 2000; i++) {
+                double r = (i + 0.5) * rho / 2000;
+                inside += 2.0 * M_PI * r * dipole(sp, sa, p->eta, r) * rho / 2000;
+            }
+            CHECK_REL(lv.table[c], inside / (M_PI * rho * rho), 5e-3);
+        }
+    }
+    lu_bssrdf_profile_destroy(&prof);
 }
 
 typedef struct mp_ctx {
@@ -600,6 +640,7 @@ static void test_dragon_scene(void) {
 
 int main(void) {
     RUN_TEST(test_dipole_profile_and_total);
+    RUN_TEST(test_prefilter_levels);
     RUN_TEST(test_multipole_totals);
     RUN_TEST(test_multilayer);
     RUN_TEST(test_sh9_irradiance);
