@@ -623,8 +623,19 @@ static void test_dragon_scene(void) {
     if (r != LU_OK) return;
     s.camera.width = 48;
     s.camera.height = 48;
-    lu_image img;
-    if (render(&s, "dipole", LU_BACKEND_CPU, 1000, &img)) {
+    lu_image img = {0};
+    lu_kvlist set = {0};
+    double n = 1000;
+    lu_kv_set_number(&set, "bssrdf.splats", &n, 1, &err);
+    lu_renderer *rd = NULL;
+    CHECK_OK(lu_renderer_create("bssrdf", &s, &set, LU_BACKEND_CPU, &rd, &err), &err);
+    lu_kv_free(&set);
+    if (rd && lu_renderer_render(rd, &s, &img, &err) == LU_OK) {
+        lu_bssrdf_frame_stats fs;
+        CHECK(lu_bssrdf_last_stats(rd, &fs));
+        /* The dragon fills part of its region of interest: fewer valid samples than asked. */
+        CHECK(fs.splats > 200 && fs.splats < 1000);
+        CHECK(fs.env_splats == 0 && fs.map_texels > 0 && fs.list_entries >= fs.splats);
         double sum = 0.0;
         int finite = 1;
         for (int i = 0; i < 3 * img.width * img.height; i++) {
@@ -635,6 +646,7 @@ static void test_dragon_scene(void) {
         CHECK(sum > 0.0);
         lu_image_destroy(&img);
     }
+    lu_renderer_destroy(rd);
     lu_scene_destroy(&s);
 }
 

@@ -703,11 +703,14 @@ size_t lu_bssrdf_profile_level_entries(const lu_bssrdf_profile *p) {
     return (size_t)p->nr * p->nd * (p->kind ? 2 : 1);
 }
 
+enum { PREFILTER_NG = 24 };
+
 typedef struct prefilter_job {
     lu_bssrdf_profile *p;
     int levels;
     float rho0;
     size_t level_entries;
+    double gx[PREFILTER_NG], gw[PREFILTER_NG];   /* Gauss-Legendre on [-1, 1] */
 } prefilter_job;
 
 /* One row (of nr entries) of every level; rows are independent. With the
@@ -718,29 +721,7 @@ typedef struct prefilter_job {
  *   alpha = pi for t <= rho - r (whole circles: the cumulative power C),
  *   alpha = acos((t^2 + r^2 - rho^2) / (2 t r)) for |rho - r| < t < rho + r. */
 static void prefilter_rows(void *ctx, int64_t begin, int64_t end, int thread) {
-    enum { NG = 24 };
-    static double gx[NG], gw[NG];
-    static int ready = 0;   /* written identically by every thread: benign */
-    if (!ready) {
-        for (int i = 0; i < NG; i++) {
-            double z = cos(M_PI * (i + 0.75) / (NG + 0.5)), dp = 1.0;
-            for (int it = 0; it < 100; it++) {
-                double p0 = 1.0, p1 = z;
-                for (int k = 2; k <= NG; k++) {
-                    double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-                    p0 = p1;
-                    p1 = p2;
-                }
-                dp = NG * (z * p1 - p0) / (z * z - 1);
-                double dz = p1 / dp;
-                z -= dz;
-                if (fabs(dz) < 1e-15) break;
-            }
-            gx[i] = z;
-            gw[i] = 2.0 / ((1 - z * z) * dp * dp);
-        }
-        ready = 1;
-    }
+    enum { NG = PREFILTER_NG };
     prefilter_job *j = ctx;
     lu_bssrdf_profile *p = j->p;
     int rows_per_level = (int)(j->level_entries / p->nr);
@@ -782,10 +763,10 @@ static void prefilter_rows(void *ctx, int64_t begin, int64_t end, int thread) {
                 double t0 = fabs(rho - r), t1 = fmin(rho + r, (double)rm);
                 if (r > 0.0 && t1 > t0) {
                     for (int q = 0; q < NG; q++) {
-                        double t = 0.5 * (t0 + t1) + 0.5 * (t1 - t0) * gx[q];
+                        double t = 0.5 * (t0 + t1) + 0.5 * (t1 - t0) * j->gx[q];
                         double ca = (t * t + r * r - rho * rho) / (2.0 * t * r);
                         double alpha = acos(fmin(fmax(ca, -1.0), 1.0));
-                        double wq = 0.5 * (t1 - t0) * gw[q] * 2.0 * t * alpha;
+                        double wq = 0.5 * (t1 - t0) * j->gw[q] * 2.0 * t * alpha;
                         for (int c = 0; c < 3; c++) acc[c] += wq * table_lerp(src, p->nr, rm, (float)t, c);
                     }
                 }
@@ -805,7 +786,24 @@ lu_result lu_bssrdf_profile_prefilter(lu_bssrdf_profile *p, int levels, float rh
     p->table = t;
     p->levels = levels;
     p->rho0 = rho0;
-    prefilter_job j = {p, levels, rho0, per};
+    prefilter_job j = {p, levels, rho0, per, {0}, {0}};
+    for (int i = 0; i < PREFILTER_NG; i++) {
+        double z = cos(M_PI * (i + 0.75) / (PREFILTER_NG + 0.5)), dp = 1.0;
+        for (int it = 0; it < 100; it++) {
+            double p0 = 1.0, p1 = z;
+            for (int k = 2; k <= PREFILTER_NG; k++) {
+                double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
+                p0 = p1;
+                p1 = p2;
+            }
+            dp = PREFILTER_NG * (z * p1 - p0) / (z * z - 1);
+            double dz = p1 / dp;
+            z -= dz;
+            if (fabs(dz) < 1e-15) break;
+        }
+        j.gx[i] = z;
+        j.gw[i] = 2.0 / ((1 - z * z) * dp * dp);
+    }
     lu_parallel_for((int64_t)(per / p->nr), 1, prefilter_rows, &j, NULL);
     return LU_OK;
 }
