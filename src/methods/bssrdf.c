@@ -722,7 +722,7 @@ static lu_result build_lights(bssrdf_state *st, const lu_scene *scene, lu_error 
             m->view = *v;
             m->light = l;
             int rect[4];
-            if (!project_box(v, st->objects_box, res, rect)) continue;
+            if (!lu_aabb_valid(st->objects_box) || !project_box(v, st->objects_box, res, rect)) continue;
             m->x0 = rect[0], m->y0 = rect[1], m->x1 = rect[2], m->y1 = rect[3];
             m->tex = malloc((size_t)(m->x1 - m->x0) * (m->y1 - m->y0) * sizeof *m->tex);
             if (!m->tex) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for a light-space map");
