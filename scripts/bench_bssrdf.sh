@@ -21,23 +21,23 @@ run() { [[ $what == all || $what == "$1" ]]; }
 # ---- (1) total diffuse reflectance of every preset; the random walk ------------------
 if run totals; then
   "$L" profile --all >"$OUT/totals.csv"
-  "$L" profile --all --mc 200000 --bins 64 >"$OUT/totals_mc.csv"
+  "$L" profile --all --mc 100000 --bins 64 >"$OUT/totals_mc.csv"
   for p in marble skin1 ketchup; do
-    "$L" profile --preset "$p" --mc 1000000 --bins 80 --csv "$OUT/profile_$p.csv" >"$OUT/profile_$p.txt"
+    "$L" profile --preset "$p" --mc 400000 --bins 80 --csv "$OUT/profile_$p.csv" >"$OUT/profile_$p.txt"
   done
-  "$L" profile --preset marble --model multipole --thickness 4 --mc 1000000 --bins 80 \
+  "$L" profile --preset marble --model multipole --thickness 4 --mc 400000 --bins 80 \
     --csv "$OUT/profile_marble_slab4mm.csv" >"$OUT/profile_marble_slab4mm.txt"
-  "$L" profile --preset skin1 --model burley --mc 1000000 --bins 80 --csv "$OUT/profile_skin1_burley.csv" \
+  "$L" profile --preset skin1 --model burley --mc 400000 --bins 80 --csv "$OUT/profile_skin1_burley.csv" \
     >"$OUT/profile_skin1_burley.txt"
 fi
 
 # ---- (2) frame time vs splat count, 512^2, dipole and multipole, CPU and GPU --------
 # rel_l2 is against the same configuration at 65536 splats (its own converged image).
-stats_row() { # file backend -> "splats,env,pairs,maps_ms,samples_ms,gbuffer_ms,binning_ms,splat_ms"
-  grep "($2)" "$1" | tail -1 | sed -E 's/.*maps ([0-9.]+) ms.*samples ([0-9.]+) ms \(([0-9]+) splats, ([0-9]+) environment\), G-buffer ([0-9.]+) ms, binning ([0-9.]+) ms \(([0-9]+) splat-tile pairs\), splat\+shade ([0-9.]+) ms/\3,\4,\7,\1,\2,\5,\6,\8/'
+stats_row() { # file backend -> "splats,env,pairs,maps_ms,samples_ms,gbuffer_ms,binning_ms,splat_ms,cpu_ms"
+  grep "($2)" "$1" | tail -1 | sed -E 's/.*maps ([0-9.]+) ms.*samples ([0-9.]+) ms \(([0-9]+) splats, ([0-9]+) environment\), G-buffer ([0-9.]+) ms, binning ([0-9.]+) ms \(([0-9]+) splat-tile pairs\), splat\+shade ([0-9.]+) ms; processor time ([0-9.]+) ms/\3,\4,\7,\1,\2,\5,\6,\8,\9/'
 }
 if run sweep; then
-  echo "scene,profile,backend,splats_requested,splats,env_splats,splat_tile_pairs,maps_ms,samples_ms,gbuffer_ms,binning_ms,splat_shade_ms,frame_ms,rel_l2_vs_65536" >"$OUT/sweep.csv"
+  echo "scene,profile,backend,splats_requested,splats,env_splats,splat_tile_pairs,maps_ms,samples_ms,gbuffer_ms,binning_ms,splat_shade_ms,frame_cpu_ms,frame_ms,rel_l2_vs_65536" >"$OUT/sweep.csv"
   for scene in bunny_marble dragon_marble; do
     for profile in dipole multipole; do
       ref="$TMP/ref_${scene}_$profile.exr"

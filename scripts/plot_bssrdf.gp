@@ -35,8 +35,8 @@ set format y "%g"
 set xlabel "splats drawn (valid light samples)"
 set key top left
 sel(s, p, b) = sprintf("< awk -F, '$1==\"%s\" && $2==\"%s\" && $3==\"%s\"' docs/bssrdf/sweep.csv", s, p, b)
-set ylabel "frame time (ms, 512^2, 2-core CPU / llvmpipe)"
-set title "frame time vs splat count"
+set ylabel "processor time per frame (ms, 512^2; 2-core CPU / llvmpipe)"
+set title "frame cost vs splat count"
 plot sel("bunny_marble","dipole","cpu") using 5:13 with linespoints lw 2 pt 7 lc rgb "#0077bb" title "bunny dipole cpu", \
      sel("bunny_marble","multipole","cpu") using 5:13 with linespoints lw 2 pt 5 lc rgb "#33bbee" title "bunny multipole cpu", \
      sel("dragon_marble","dipole","cpu") using 5:13 with linespoints lw 2 pt 7 lc rgb "#cc3311" title "dragon dipole cpu", \
@@ -47,8 +47,8 @@ plot sel("bunny_marble","dipole","cpu") using 5:13 with linespoints lw 2 pt 7 lc
      sel("dragon_marble","multipole","gpu") using 5:13 with points pt 4 ps 1.5 lc rgb "#ee7733" title "dragon multipole gpu"
 set ylabel "rel-L2 against 65536 requested splats"
 set title "sampling error vs splat count (cpu)"
-plot sel("bunny_marble","dipole","cpu") using 5:14 with linespoints lw 2 pt 7 lc rgb "#0077bb" title "bunny dipole", \
-     sel("bunny_marble","multipole","cpu") using 5:14 with linespoints lw 2 pt 5 lc rgb "#33bbee" title "bunny multipole", \
-     sel("dragon_marble","dipole","cpu") using 5:14 with linespoints lw 2 pt 7 lc rgb "#cc3311" title "dragon dipole", \
-     sel("dragon_marble","multipole","cpu") using 5:14 with linespoints lw 2 pt 5 lc rgb "#ee7733" title "dragon multipole"
+plot sel("bunny_marble","dipole","cpu") using 5:15 with linespoints lw 2 pt 7 lc rgb "#0077bb" title "bunny dipole", \
+     sel("bunny_marble","multipole","cpu") using 5:15 with linespoints lw 2 pt 5 lc rgb "#33bbee" title "bunny multipole", \
+     sel("dragon_marble","dipole","cpu") using 5:15 with linespoints lw 2 pt 7 lc rgb "#cc3311" title "dragon dipole", \
+     sel("dragon_marble","multipole","cpu") using 5:15 with linespoints lw 2 pt 5 lc rgb "#ee7733" title "dragon multipole"
 unset multiplot

@@ -26,6 +26,7 @@ typedef struct lu_bssrdf_frame_stats {
     long long list_entries;  /* splat-tile pairs after binning */
     long long map_texels;    /* light-space texels ray cast */
     double ms_maps, ms_samples, ms_gbuffer, ms_binning, ms_splat;  /* ms_splat: gather + deferred shading */
+    double cpu_ms;           /* processor time of the process during the frame (all threads) */
 } lu_bssrdf_frame_stats;
 
 /* Stats of the renderer's last frame; false if `state` is not a bssrdf state. */
