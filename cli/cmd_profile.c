@@ -105,7 +105,15 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
         printf("  model %s, %d entries, r_max %.5g mm (eps %g)\n",
                o->desc.model == LU_BSSRDF_MULTIPOLE ? "multipole" : o->desc.model == LU_BSSRDF_BURLEY ? "burley" : "dipole",
                prof.nr, prof.r_max, o->desc.epsilon);
-        if (o->desc.model == LU_BSSRDF_MULTIPOLE) printf("  thickness d %.5g mm (table rows %.4g..%.4g mm)\n", o->thickness, prof.d_lo, prof.d_hi);
+        if (o->desc.model == LU_BSSRDF_MULTIPOLE) {
+            printf("  thickness d %.5g mm (table rows %.4g..%.4g mm)\n", o->thickness, prof.d_lo, prof.d_hi);
+            double R[3], T[3];
+            for (int c = 0; c < 3; c++)
+                lu_bssrdf_slab_totals(lu_v3_get(ss, c), lu_v3_get(sa, c), eta, eta, o->thickness, &R[c], &T[c]);
+            printf("  slab of thickness d, closed form (1D Green's function)\n");
+            printf("    reflectance               %10.6f %10.6f %10.6f\n", R[0], R[1], R[2]);
+            printf("    transmittance             %10.6f %10.6f %10.6f\n", T[0], T[1], T[2]);
+        }
         const char *lbl = o->desc.model == LU_BSSRDF_MULTIPOLE ? "(R at the table's thickest row)" : "";
         printf("  total reflectance %s\n", lbl);
         printf("    closed form               %10.6f %10.6f %10.6f\n", prof.total_closed[0], prof.total_closed[1],

@@ -108,9 +108,9 @@ fi
 if run reference; then
   "$L" bench scenes/bssrdf_spheres.json --methods reference,bssrdf --backends cpu,gpu --size 160x100 --frames 1 \
     --warmup 1 --set bssrdf.profile=multipole --save-images "$TMP" --csv "$OUT/vs_reference.csv" >"$OUT/vs_reference.txt" 2>&1
-  cp "$TMP/reference-cpu.exr" "$OUT/spheres_reference.exr" 2>/dev/null || true
-  "$L" compare "$TMP/bssrdf-cpu.exr" "$TMP/reference-cpu.exr" -o "$IMG/spheres_vs_reference_diff.png" >>"$OUT/vs_reference.txt"
-  "$L" render scenes/bssrdf_spheres.json --method reference --size 320x200 -o "$IMG/spheres_reference.png" 2>/dev/null
+  "$L" render scenes/bssrdf_spheres.json --method reference --size 160x100 -o "$TMP/truth.exr" 2>/dev/null
+  "$L" compare "$TMP/bssrdf-cpu.exr" "$TMP/truth.exr" -o "$IMG/spheres_vs_reference_diff.png" >>"$OUT/vs_reference.txt"
+  "$L" render scenes/bssrdf_spheres.json --method reference --size 512x320 -o "$IMG/spheres_reference.png" 2>/dev/null
 fi
 
 # ---- plots --------------------------------------------------------------------------------
