@@ -69,8 +69,10 @@ int lu_cmd_render(int argc, char **argv) {
         } else if (strcmp(a, "--progressive-every") == 0 && has_next) {
             char *end;
             long n = strtol(argv[++i], &end, 10);
-            if (*end || n < 1 || n > 1000000000L) rc = lu_cli_usage("render", "--progressive-every takes a positive integer");
-            else progressive_every = (int)n;
+            if (*end || n < 1 || n > 1000000000L)
+                rc = lu_cli_usage("render", "--progressive-every takes a positive integer");
+            else
+                progressive_every = (int)n;
         } else if (strcmp(a, "--half") == 0) {
             save.exr_half = true;
         } else if ((strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) && has_next) {

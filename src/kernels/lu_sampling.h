@@ -178,7 +178,8 @@ LU_FN float lu_k_blinn_phong_pdf(vec3 albedo, vec3 specular, float shininess, ve
         vec3 h = lu_v3_norm(lu_v3_add(wo, wi));
         float ch = lu_max(lu_v3_dot(n, h), 0.0f);
         float oh = lu_v3_dot(wo, h);
-        if (oh > 0.0f) pdf += (1.0f - pd) * (shininess + 1.0f) * (0.5f * LU_K_INV_PI) * lu_pow(ch, shininess) / (4.0f * oh);
+        if (oh > 0.0f)
+            pdf += (1.0f - pd) * (shininess + 1.0f) * (0.5f * LU_K_INV_PI) * lu_pow(ch, shininess) / (4.0f * oh);
     }
     return pdf;
 }
@@ -205,8 +206,8 @@ LU_FN vec3 lu_k_sample_blinn_phong(vec3 albedo, vec3 specular, float shininess, 
  * Participating Media"): equiangular sampling makes pdf(s) proportional to
  * 1 / |x - (b + s u)|^2, cancelling the inverse-square fall-off. */
 struct lu_k_equiangular {
-    float s0;      /* parameter of x's foot on the line */
-    float h;       /* distance from x to the line */
+    float s0; /* parameter of x's foot on the line */
+    float h;  /* distance from x to the line */
     float th_a, th_b;
 };
 LU_TYPEDEF(lu_k_equiangular)

@@ -39,10 +39,10 @@
 
 struct lu_k_walk {
     lu_k_dda dda;
-    vec3 oq, dq;      /* the ray in block space */
-    float ta, tb;     /* current block piece */
+    vec3 oq, dq;  /* the ray in block space */
+    float ta, tb; /* current block piece */
     float t_end;
-    float dmax;       /* majorant density of the current piece */
+    float dmax; /* majorant density of the current piece */
 };
 LU_TYPEDEF(lu_k_walk)
 
@@ -68,7 +68,8 @@ LU_FN bool lu_k_walk_next(LU_CTX_PARAM, int medium, LU_INOUT(lu_k_walk) w) {
     LU_DEREF(w).ta = a;
     LU_DEREF(w).tb = b;
     vec3 q = lu_v3_madd(LU_DEREF(w).oq, LU_DEREF(w).dq, 0.5f * (a + b));
-    LU_DEREF(w).dmax = lu_k_majorant(LU_CTX, medium, lu_int(lu_floor(q.x)), lu_int(lu_floor(q.y)), lu_int(lu_floor(q.z)));
+    LU_DEREF(w).dmax =
+        lu_k_majorant(LU_CTX, medium, lu_int(lu_floor(q.x)), lu_int(lu_floor(q.y)), lu_int(lu_floor(q.z)));
     return true;
 }
 

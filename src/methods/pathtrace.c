@@ -51,6 +51,7 @@ static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p);
 static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz);
 
 #include "kernels/lu_camera.h"
+#include "kernels/lu_march.h"
 #include "kernels/lu_optics.h"
 #include "kernels/lu_sampling.h"
 #include "kernels/lu_tracking.h"
@@ -66,8 +67,12 @@ enum {
     P_JITTER,
     P_LIGHT_PATHS,
     P_SPECTRAL,
+    P_EQUIANGULAR,
+    P_TRANSMITTANCE,
     P_COUNT
 };
+
+enum { TR_RATIO = 0, TR_EXACT };
 
 enum { SPECTRAL_HERO = 0, SPECTRAL_TRACKING };
 
@@ -91,41 +96,48 @@ static const lu_param_desc k_params[P_COUNT] = {
                        "light subpaths per sample and delta light for lights behind refracting boundaries"},
     [P_SPECTRAL] = {"spectral", LU_PARAM_CHOICE, 0, 0, 1, "hero|tracking",
                     "RGB free-flight sampling: hero channel + spectral MIS, or spectral tracking (Kutz et al. 2017)"},
+    [P_EQUIANGULAR] =
+        {"equiangular", LU_PARAM_BOOL, 1, 0, 1, NULL,
+         "point/spot light in media: per segment by equiangular sampling (on) or at free-flight vertices (off)"},
+    [P_TRANSMITTANCE] = {"transmittance", LU_PARAM_CHOICE, 0, 0, 1, "ratio|exact",
+                         "shadow-ray transmittance in grids: ratio tracking (unbiased estimate) or exact cell-wise "
+                         "optical depth (lu_march.h)"},
 };
 
-#define PT_MAX_BOUNDED 64       /* bounded media: one bit each in a path's inside mask */
+#define PT_MAX_BOUNDED 64 /* bounded media: one bit each in a path's inside mask */
 #define PT_MAX_MEDIA 128
-#define PT_MAX_CROSSINGS 256    /* surfaces a shadow ray may cross */
-#define PT_MAX_SPECULAR 256     /* dielectric events per path */
+#define PT_MAX_CROSSINGS 256 /* surfaces a shadow ray may cross */
+#define PT_MAX_SPECULAR 256  /* dielectric events per path */
 #define PT_MAX_BEAMS 64
 #define PT_MAX_LIGHT_SEGMENTS 16
 
 typedef struct pt_medium {
     lu_vec3 sigma_t;
-    float sigma_max;            /* largest channel of sigma_t */
+    float sigma_max; /* largest channel of sigma_t */
     bool constant;
-    float cdens;                /* constant density */
-    int bit;                    /* bounded: its bit in the inside mask; -1 unbounded */
+    float cdens; /* constant density */
+    int bit;     /* bounded: its bit in the inside mask; -1 unbounded */
     bool refract;
     float eta;
-    float lambda;               /* a typical extinction (mean channel), for beam distance sampling */
-    lu_pt_majorant maj;         /* grid media */
-    lu_aabb box;                /* world box of non-zero density */
-    lu_accel *inside;           /* its boundary alone, for inside tests */
+    float lambda;       /* a typical extinction (mean channel), for beam distance sampling */
+    lu_pt_majorant maj; /* grid media */
+    int max_pieces;     /* DDA bound for exact optical depth */
+    lu_aabb box;        /* world box of non-zero density */
+    lu_accel *inside;   /* its boundary alone, for inside tests */
 } pt_medium;
 
 enum { SURF_OPAQUE = 0, SURF_BOUNDARY };
 typedef struct pt_surf {
     int kind;
-    int index;                  /* object or medium */
+    int index; /* object or medium */
 } pt_surf;
 
 typedef struct pt_env {
-    int light;                  /* index in the scene's lights */
-    int w, h;                   /* distribution cells */
-    float *cdf_rows;            /* h + 1 */
-    float *cdf_cols;            /* h * (w + 1) */
-    float *prob;                /* w * h, probability of each cell */
+    int light;       /* index in the scene's lights */
+    int w, h;        /* distribution cells */
+    float *cdf_rows; /* h + 1 */
+    float *cdf_cols; /* h * (w + 1) */
+    float *prob;     /* w * h, probability of each cell */
 } pt_env;
 
 typedef struct pt_beam {
@@ -137,15 +149,17 @@ typedef struct pt_beam {
     /* Forward beams that are the first segment after refracting into a
      * bounded medium: the vertex strategy (connect_vertex_beams) makes the
      * same beams, so these carry what its MIS weight needs. */
-    int entry_medium;           /* -1: no other strategy makes this beam */
-    lu_vec3 s, ns;              /* entry point and outward normal there */
-    float pdf_fwd;              /* area pdf of s under light subpath sampling (refraction choice included) */
+    int entry_medium; /* -1: no other strategy makes this beam */
+    lu_vec3 s, ns;    /* entry point and outward normal there */
+    float pdf_fwd;    /* area pdf of s under light subpath sampling (refraction choice included) */
 } pt_beam;
 
 struct pt_state {
     int spp, max_depth, rr_depth, light_paths;
     bool rr, jitter;
     int spectral;
+    bool equiangular;
+    int transmittance;
     uint32_t seed;
     int boundary_mode;
     float block;
@@ -158,7 +172,7 @@ struct pt_state {
     int env_count;
     float eps;
     bool have_refract;
-    uint64_t refract_bits;      /* inside-mask bits of refracting media */
+    uint64_t refract_bits; /* inside-mask bits of refracting media */
     int delta_light_count;
     lu_vec3 refract_center;
     float refract_radius;
@@ -169,9 +183,10 @@ struct pt_state {
     struct lu_k_ctx kctx;
     lu_k_camera cam;
     lu_k_light *klights;
-    uint64_t *light_mask;       /* inside mask at each light's position */
+    uint64_t *light_mask; /* inside mask at each light's position */
     uint64_t camera_mask;
     bool have_delta_lights;
+    bool have_point_lights; /* point or spot */
     double *accum;
     lu_image *out;
     int pass_begin, pass_end;
@@ -225,9 +240,7 @@ void lu_pt_majorant_destroy(lu_pt_majorant *m) {
 
 /* ---- helpers --------------------------------------------------------------------- */
 
-static bool medium_active(const pt_medium *pm, uint64_t mask) {
-    return pm->bit < 0 || ((mask >> pm->bit) & 1u);
-}
+static bool medium_active(const pt_medium *pm, uint64_t mask) { return pm->bit < 0 || ((mask >> pm->bit) & 1u); }
 
 static uint64_t mask_set(uint64_t mask, int bit, bool inside) {
     return inside ? mask | ((uint64_t)1 << bit) : mask & ~((uint64_t)1 << bit);
@@ -309,8 +322,10 @@ static int cdf_find(const float *cdf, int n, float u) {
     int lo = 0, hi = n - 1;
     while (lo < hi) {
         int mid = (lo + hi + 1) / 2;
-        if (cdf[mid] <= u) lo = mid;
-        else hi = mid - 1;
+        if (cdf[mid] <= u)
+            lo = mid;
+        else
+            hi = mid - 1;
     }
     return lo;
 }
@@ -372,8 +387,10 @@ static bool walker_begin(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, float 
 
 static void walker_advance(const pt_state *st, pt_walker *wk, lu_k_rng *rng) {
     const pt_medium *pm = &st->media[wk->m];
-    if (pm->constant) wk->t -= logf(1.0f - rnd(rng)) / (pm->sigma_max * pm->cdens);
-    else wk->t = lu_k_walk_tentative(&st->kctx, wk->m, &wk->w, wk->t, pm->sigma_max, rng);
+    if (pm->constant)
+        wk->t -= logf(1.0f - rnd(rng)) / (pm->sigma_max * pm->cdens);
+    else
+        wk->t = lu_k_walk_tentative(&st->kctx, wk->m, &wk->w, wk->t, pm->sigma_max, rng);
 }
 
 /* Interval of the ray inside medium m's box, within [0, t_end]. */
@@ -382,7 +399,7 @@ static bool medium_span(const pt_medium *pm, lu_vec3 o, lu_vec3 d, float t_end, 
 }
 
 typedef struct pt_flight {
-    int event;                  /* LU_K_EVENT_SCATTER, or -1: reached t_end; LU_K_EVENT_ABSORB: path ended */
+    int event; /* LU_K_EVENT_SCATTER, or -1: reached t_end; LU_K_EVENT_ABSORB: path ended */
     int medium;
     float t;
 } pt_flight;
@@ -439,8 +456,11 @@ static pt_flight free_flight(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_e
 }
 
 /* Transmittance over (0, t_end) of the media active under `mask` (no
- * surfaces): exact for constant density, ratio tracking for grids. */
-static lu_vec3 media_transmittance(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end, uint64_t mask, lu_k_rng *rng) {
+ * surfaces): exact for constant density; for grids ratio tracking (an
+ * unbiased estimate) or, with transmittance=exact, the cell-exact optical
+ * depth the reference uses. */
+static lu_vec3 media_transmittance(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end, uint64_t mask,
+                                   lu_k_rng *rng) {
     lu_vec3 tr = lu_v3s(1.0f);
     for (int m = 0; m < st->medium_count && lu_v3_maxc(tr) > 0.0f; m++) {
         const pt_medium *pm = &st->media[m];
@@ -452,7 +472,13 @@ static lu_vec3 media_transmittance(const pt_state *st, lu_vec3 o, lu_vec3 d, flo
         }
         const lu_medium *med = &st->scene->media[m];
         lu_vec3 oi = lu_affine_point(&med->world_to_index, o), di = lu_affine_vector(&med->world_to_index, d);
-        tr = lu_v3_mul(tr, lu_k_ratio_tracking(&st->kctx, m, oi, di, a, b, st->block, pm->sigma_t, pm->sigma_max, rng));
+        if (st->transmittance == TR_EXACT) {
+            float tau = lu_k_optical_depth(&st->kctx, m, oi, di, a, b, pm->max_pieces);
+            tr = lu_v3_mul(tr, lu_v3_exp(lu_v3_scale(pm->sigma_t, -tau)));
+        } else {
+            tr = lu_v3_mul(tr,
+                           lu_k_ratio_tracking(&st->kctx, m, oi, di, a, b, st->block, pm->sigma_t, pm->sigma_max, rng));
+        }
     }
     return tr;
 }
@@ -490,12 +516,12 @@ static lu_vec3 transmit(const pt_state *st, lu_vec3 x, lu_vec3 w, float dist, ui
 
 typedef struct pt_vertex {
     bool surface;
-    lu_vec3 x;                  /* surfaces: offset off the surface on wo's side */
-    lu_vec3 d;                  /* medium: direction the path arrived in */
+    lu_vec3 x; /* surfaces: offset off the surface on wo's side */
+    lu_vec3 d; /* medium: direction the path arrived in */
     float g;
-    lu_vec3 n, wo;              /* surface: shading normal facing wo, direction to the previous vertex */
+    lu_vec3 n, wo; /* surface: shading normal facing wo, direction to the previous vertex */
     const lu_material *mat;
-    uint64_t mask;              /* media present at x */
+    uint64_t mask; /* media present at x */
 } pt_vertex;
 
 /* Scattering function towards wl (phase, or BRDF x cos) and the pdf with
@@ -541,6 +567,8 @@ static lu_vec3 nee(const pt_state *st, const pt_vertex *v, bool mis, lu_k_rng *r
             sum = lu_v3_add(sum, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, le), tr), w / pl));
             continue;
         }
+        /* Point and spot lights reach medium vertices through segment_nee. */
+        if (!v->surface && st->equiangular && light->type != LU_LIGHT_DIRECTIONAL) continue;
         lu_k_light_sample ls = lu_k_light_arrive(st->klights[l], v->x);
         if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
         float pv;
@@ -572,6 +600,58 @@ static lu_vec3 beam_scatter(const pt_state *st, lu_vec3 y, lu_vec3 u, lu_vec3 v,
         float dens = pm->constant ? pm->cdens : lu_grid_sample(&med->grid, lu_affine_point(&med->world_to_index, y));
         if (dens <= 0.0f) continue;
         sum = lu_v3_madd(sum, med->sigma_s, dens * lu_k_phase_hg(lu_v3_dot(u, v), med->phase_g));
+    }
+    return sum;
+}
+
+/* Direct light from point and spot lights scattered towards -d anywhere on
+ * the segment o + t d, t in (0, t_end), through the media active under
+ * `mask`. Free-flight vertices near such a light carry 1 / d^2, a weight of
+ * infinite variance; sampling t equiangularly about the light (Kulla and
+ * Fajardo 2012) cancels it. One sample per light, from the equiangular or an
+ * exponential density (rate: the media's typical extinction) with
+ * probability 1/2 each, divided by the mixture (one-sample balance MIS);
+ * transmittance to t is estimated independently (exact or ratio tracking). */
+static lu_vec3 segment_nee(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end, uint64_t mask, lu_k_rng *rng) {
+    const lu_scene *sc = st->scene;
+    lu_vec3 sum = lu_v3s(0.0f);
+    float a0 = INFINITY, b0 = -INFINITY, lambda = 0.0f;
+    for (int m = 0; m < st->medium_count; m++) {
+        const pt_medium *pm = &st->media[m];
+        float a, b;
+        if (!medium_active(pm, mask) || !medium_span(pm, o, d, t_end, &a, &b)) continue;
+        a0 = fminf(a0, a);
+        b0 = fmaxf(b0, b);
+        lambda = fmaxf(lambda, pm->lambda);
+    }
+    if (!(b0 > a0)) return sum;
+    float len = b0 - a0;
+    lu_vec3 start = lu_v3_madd(o, d, a0);
+    uint64_t enclosing = mask & st->refract_bits;
+    for (int l = 0; l < sc->light_count; l++) {
+        lu_light_type type = sc->lights[l].type;
+        if (type != LU_LIGHT_POINT && type != LU_LIGHT_SPOT) continue;
+        if (enclosing & ~st->light_mask[l]) continue;
+        const lu_k_light kl = st->klights[l];
+        lu_k_equiangular eq = lu_k_equiangular_make(kl.position, start, d, len);
+        bool use_exp = lambda * len > 1e-4f;
+        float pick = rnd(rng), u = rnd(rng);
+        float s = !use_exp || pick < 0.5f ? lu_k_equiangular_sample(eq, u) : lu_k_trunc_exp_sample(lambda, len, u);
+        s = fminf(fmaxf(s, 0.0f), len);
+        float pdf = lu_k_equiangular_pdf(eq, s);
+        if (use_exp) pdf = 0.5f * (pdf + lu_k_trunc_exp_pdf(lambda, len, s));
+        if (!(pdf > 0.0f) || !isfinite(pdf)) continue;
+        lu_vec3 y = lu_v3_madd(start, d, s);
+        lu_k_light_sample ls = lu_k_light_arrive(kl, y);
+        if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+        lu_vec3 sy = beam_scatter(st, y, lu_v3_neg(ls.wl), lu_v3_neg(d), mask);
+        if (lu_v3_maxc(sy) <= 0.0f) continue;
+        lu_vec3 t0 = media_transmittance(st, o, d, a0 + s, mask, rng);
+        if (lu_v3_maxc(t0) <= 0.0f) continue;
+        lu_vec3 tl = transmit(st, y, ls.wl, ls.dist, mask, rng);
+        if (lu_v3_maxc(tl) <= 0.0f) continue;
+        lu_vec3 c = lu_v3_mul(lu_v3_mul(t0, sy), lu_v3_mul(ls.irradiance, tl));
+        sum = lu_v3_add(sum, lu_v3_scale(c, 1.0f / pdf));
     }
     return sum;
 }
@@ -738,8 +818,8 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams) 
                 lu_vec3 t, bb;
                 lu_k_basis(kl.direction, &t, &bb);
                 float r = st->refract_radius * sqrtf(u1), phi = 2.0f * LU_PI * u2;
-                float back = lu_v3_len(lu_v3_sub(st->refract_center, st->scene_center)) + st->scene_radius +
-                             st->refract_radius;
+                float back =
+                    lu_v3_len(lu_v3_sub(st->refract_center, st->scene_center)) + st->scene_radius + st->refract_radius;
                 o = lu_v3_madd(lu_v3_madd(lu_v3_madd(st->refract_center, kl.direction, back), t, r * cosf(phi)), bb,
                                r * sinf(phi));
                 d = lu_v3_neg(kl.direction);
@@ -759,11 +839,12 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams) 
                     pdf = lu_k_cone_pdf(cos_max);
                 }
                 float fall = 1.0f;
-                if (kl.type == LU_K_LIGHT_SPOT) fall = lu_smoothstep(kl.cos_outer, kl.cos_inner, lu_v3_dot(d, kl.direction));
+                if (kl.type == LU_K_LIGHT_SPOT)
+                    fall = lu_smoothstep(kl.cos_outer, kl.cos_inner, lu_v3_dot(d, kl.direction));
                 flux = lu_v3_scale(kl.intensity, fall / pdf);
             }
             bool specular = false;
-            int entry_m = -1;           /* set for the segment right after refracting in first */
+            int entry_m = -1; /* set for the segment right after refracting in first */
             lu_vec3 entry_s = lu_v3s(0.0f), entry_n = lu_v3s(0.0f);
             float entry_pdf = 0.0f;
             for (int seg = 0; seg < PT_MAX_LIGHT_SEGMENTS && lu_v3_maxc(flux) > 0.0f; seg++) {
@@ -843,13 +924,13 @@ static lu_vec3 spectral_weight(lu_vec3 beta, lu_vec3 r) { return lu_v3_scale(bet
 static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, lu_k_rng *rng) {
     const lu_scene *s = st->scene;
     lu_vec3 L = lu_v3s(0.0f), beta = lu_v3s(1.0f);
-    lu_vec3 r = lu_v3s(1.0f);   /* spectral MIS: p_c / p_hero of the free-flight decisions so far */
-    float rr_scale = 1.0f;      /* product of dielectric radiance factors: RR looks at beta / rr_scale */
+    lu_vec3 r = lu_v3s(1.0f); /* spectral MIS: p_c / p_hero of the free-flight decisions so far */
+    float rr_scale = 1.0f;    /* product of dielectric radiance factors: RR looks at beta / rr_scale */
     uint64_t mask = st->camera_mask;
     int depth = 0, specular_events = 0;
-    bool primary = true;        /* still on the camera ray: straight boundaries apply no F_t (reference) */
-    bool scattered = false;     /* any scattering vertex yet (the background is a backdrop only) */
-    bool prev_delta = true;     /* last direction chosen by the camera or a dielectric: no MIS */
+    bool primary = true;    /* still on the camera ray: straight boundaries apply no F_t (reference) */
+    bool scattered = false; /* any scattering vertex yet (the background is a backdrop only) */
+    bool prev_delta = true; /* last direction chosen by the camera or a dielectric: no MIS */
     float prev_pdf = 0.0f;
 
     pt_beam beams[PT_MAX_BEAMS];
@@ -861,6 +942,8 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, lu
         lu_hit hit;
         bool has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, LU_K_FAR, &hit);
         float t_end = has ? hit.t : LU_K_FAR;
+        if (st->equiangular && st->have_point_lights && depth + 1 <= st->max_depth)
+            L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), segment_nee(st, o, d, t_end, mask, rng)));
         pt_flight fl = free_flight(st, o, d, t_end, mask, &beta, &r, hero, rng);
         if (fl.event == LU_K_EVENT_ABSORB || lu_v3_maxc(beta) <= 0.0f) break;
 
@@ -874,8 +957,10 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, lu
             v.mask = mask;
             L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), nee(st, &v, depth < st->max_depth, rng)));
             if (beams_on && depth + 1 <= st->max_depth)
-                L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), lu_v3_add(connect_beams(st, &v, beams, nbeams, rng),
-                                                           connect_vertex_beams(st, &v, rng))));
+                L = lu_v3_add(
+                    L,
+                    lu_v3_mul(spectral_weight(beta, r),
+                              lu_v3_add(connect_beams(st, &v, beams, nbeams, rng), connect_vertex_beams(st, &v, rng))));
             if (depth >= st->max_depth) break;
             float u1 = rnd(rng), u2 = rnd(rng);
             lu_vec3 wi = lu_k_sample_hg(d, v.g, u1, u2);
@@ -918,7 +1003,9 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, lu
                         v.mat = &med->surface;
                         v.mask = mask;
                         float fr = lu_k_fresnel_reflectance(c, pm->eta);
-                        if (fr > 0.0f) L = lu_v3_add(L, lu_v3_scale(lu_v3_mul(spectral_weight(beta, r), nee(st, &v, false, rng)), fr));
+                        if (fr > 0.0f)
+                            L = lu_v3_add(
+                                L, lu_v3_scale(lu_v3_mul(spectral_weight(beta, r), nee(st, &v, false, rng)), fr));
                     }
                     if (!primary) beta = lu_v3_scale(beta, lu_k_fresnel_transmittance(c, pm->eta));
                     mask = mask_set(mask, pm->bit, entering);
@@ -943,9 +1030,9 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, lu
             const lu_object *ob = &s->objects[sf->index];
             const uint32_t *tri = &ob->mesh.indices[3u * hit.prim_id];
             float w0 = 1.0f - hit.u - hit.v;
-            lu_vec3 n = lu_v3_norm(lu_v3_add(lu_v3_add(lu_v3_scale(ob->mesh.normals[tri[0]], w0),
-                                                       lu_v3_scale(ob->mesh.normals[tri[1]], hit.u)),
-                                             lu_v3_scale(ob->mesh.normals[tri[2]], hit.v)));
+            lu_vec3 n = lu_v3_norm(lu_v3_add(
+                lu_v3_add(lu_v3_scale(ob->mesh.normals[tri[0]], w0), lu_v3_scale(ob->mesh.normals[tri[1]], hit.u)),
+                lu_v3_scale(ob->mesh.normals[tri[2]], hit.v)));
             lu_vec3 ng = hit.ng;
             if (lu_v3_dot(ng, d) > 0.0f) ng = lu_v3_neg(ng);
             if (lu_v3_dot(n, ng) < 0.0f) n = lu_v3_neg(n);
@@ -958,8 +1045,10 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, lu
             v.mask = mask;
             L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), nee(st, &v, depth < st->max_depth, rng)));
             if (beams_on && depth + 1 <= st->max_depth)
-                L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), lu_v3_add(connect_beams(st, &v, beams, nbeams, rng),
-                                                           connect_vertex_beams(st, &v, rng))));
+                L = lu_v3_add(
+                    L,
+                    lu_v3_mul(spectral_weight(beta, r),
+                              lu_v3_add(connect_beams(st, &v, beams, nbeams, rng), connect_vertex_beams(st, &v, rng))));
             if (depth >= st->max_depth) break;
             float ul = rnd(rng), u1 = rnd(rng), u2 = rnd(rng), pdf;
             const lu_material *mat = &ob->material;
@@ -1059,6 +1148,8 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
     st->jitter = params[P_JITTER] != 0.0;
     st->light_paths = (int)params[P_LIGHT_PATHS];
     st->spectral = (int)params[P_SPECTRAL];
+    st->equiangular = params[P_EQUIANGULAR] != 0.0;
+    st->transmittance = (int)params[P_TRANSMITTANCE];
     lu_result r = LU_OK;
 
     lu_aabb bounds = lu_scene_bounds(scene);
@@ -1096,6 +1187,7 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
             pm->lambda = lu_v3_avg(pm->sigma_t) * pm->cdens;
         } else {
             r = lu_pt_majorant_build(&med->grid, (int)st->block, &pm->maj, err);
+            pm->max_pieces = med->grid.nx + med->grid.ny + med->grid.nz + 8;
             pm->lambda = lu_v3_avg(pm->sigma_t) * 0.5f * med->grid.max_value;
         }
         if (r != LU_OK || !med->has_boundary) continue;
@@ -1104,8 +1196,8 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
             break;
         }
         pm->bit = bits++;
-        pm->refract = st->boundary_mode == BOUNDARY_REFRACT ||
-                      (st->boundary_mode == BOUNDARY_AUTO && med->from_object >= 0);
+        pm->refract =
+            st->boundary_mode == BOUNDARY_REFRACT || (st->boundary_mode == BOUNDARY_AUTO && med->from_object >= 0);
         uint32_t id;
         r = lu_accel_add_mesh(st->surf, &med->boundary, &id, err);
         if (r == LU_OK) {
@@ -1189,13 +1281,16 @@ static lu_result pt_render_impl(void *state, const lu_scene *scene, lu_image *ou
         return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
     }
     st->have_delta_lights = false;
+    st->have_point_lights = false;
     st->delta_light_count = 0;
     for (int l = 0; l < scene->light_count; l++) {
         st->klights[l] = lu_light_to_kernel(&scene->lights[l]);
         if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) continue;
         st->have_delta_lights = true;
+        st->have_point_lights |= scene->lights[l].type != LU_LIGHT_DIRECTIONAL;
         st->delta_light_count++;
-        if (scene->lights[l].type != LU_LIGHT_DIRECTIONAL) st->light_mask[l] = inside_mask_at(st, scene->lights[l].position);
+        if (scene->lights[l].type != LU_LIGHT_DIRECTIONAL)
+            st->light_mask[l] = inside_mask_at(st, scene->lights[l].position);
     }
     st->camera_mask = inside_mask_at(st, c->position);
 
@@ -1224,7 +1319,8 @@ static lu_result pt_render(void *state, const lu_scene *scene, lu_image *out, lu
 
 const lu_method lu_method_pathtrace = {
     .name = "pathtrace",
-    .summary = "unbiased progressive volumetric path tracer (spectral/ratio tracking, NEE + MIS, dielectric boundaries)",
+    .summary =
+        "unbiased progressive volumetric path tracer (spectral/ratio tracking, NEE + MIS, dielectric boundaries)",
     .backends = LU_BACKEND_CPU,
     .params = k_params,
     .param_count = P_COUNT,
