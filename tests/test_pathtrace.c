@@ -363,8 +363,8 @@ static void test_majorant_bounds(void) {
     CHECK(violations == 0);
     /* The coarse grid is tighter than one global majorant: whole empty blocks. */
     CHECK(empty_blocks > 0);
-    CHECK(lu_pt_majorant_build(&g, 0, &m, &err) == LU_ERR_INVALID_ARG);
     lu_pt_majorant_destroy(&m);
+    CHECK(lu_pt_majorant_build(&g, 0, &m, &err) == LU_ERR_INVALID_ARG);
     lu_grid_destroy(&g);
 }
 
