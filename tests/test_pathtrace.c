@@ -466,7 +466,7 @@ static void test_depth1_matches_reference(void) {
     } scenes[] = {{"smoke_box", 24, 18, 96},
                   {"cube_torus", 20, 20, 48},
                   {"homogeneous_sphere", 20, 20, 48},
-                  {"smoke_glow", 24, 18, 96}};
+                  {"smoke_glow", 24, 18, 96}, {"spot_shaft", 24, 18, 96}};
     for (size_t i = 0; i < sizeof scenes / sizeof scenes[0]; i++) {
         lu_image ref = {0};
         lu_scene sc;

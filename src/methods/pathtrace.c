@@ -3,32 +3,35 @@
  *
  * Per camera sample (one PCG stream per pixel and sample index, so images do
  * not depend on the thread count):
- *   - free flight through every medium present by spectral tracking against a
- *     coarse majorant grid per medium (lu_tracking.h); overlapping media are
- *     superposed: each runs its own tentative-collision process and the
- *     earliest one is taken (the union of independent Poisson processes);
- *   - at each real scattering event and each opaque surface hit: next-event
- *     estimation to every light, transmittance by ratio tracking (exact for
- *     constant-density media), multiple importance sampling (power heuristic)
- *     against phase / BRDF sampling for environment lights, which are
- *     importance sampled from the map's luminance; then the path continues by
- *     sampling the phase function or the Blinn-Phong lobes;
+ *   - free flight by null-collision tracking against a coarse majorant grid
+ *     per medium (lu_tracking.h); RGB by a hero channel with spectral MIS
+ *     (default) or spectral tracking; absorption is folded into the weights
+ *     and paths end by Russian roulette; overlapping media are superposed
+ *     (each runs its own tentative-collision process, the earliest wins);
+ *   - direct light: point and spot lights per path segment by equiangular
+ *     sampling; directional and environment lights at each scattering vertex
+ *     and surface hit, environments importance sampled from the map's
+ *     luminance with MIS (power heuristic) against phase / BRDF sampling;
+ *     shadow transmittance by ratio tracking (or exact, an option), exact for
+ *     constant density; the path continues by sampling the phase function or
+ *     the Blinn-Phong lobes;
  *   - bounded media ("boundary" meshes, translucent objects): "straight"
  *     boundaries are the seed model the reference renders (no refraction, F_t
- *     on every crossing except the camera ray's own, plus the boundary's coat
+ *     on every crossing except the camera ray's own, the boundary's coat
  *     reflecting direct light weighted by F_r); "refract" boundaries are smooth
  *     dielectrics (Fresnel reflection or refraction, radiance scaled by
  *     (eta_i / eta_t)^2, total internal reflection);
- *   - a light behind a refracting boundary cannot be reached by next-event
- *     estimation (the boundary is specular). For point, spot and directional
- *     lights each sample also traces a light subpath through the specular
- *     chain; its segments after the first specular event are "beams", and
- *     each camera vertex connects to a point on every beam chosen by
- *     equiangular and exponential sampling combined by the balance heuristic
- *     (Kulla and Fajardo 2012). A path (x_1 .. x_k, y, S.., light) is made by
- *     this strategy alone, so no MIS weight is needed; the one family no
- *     strategy reaches is y alone between two specular chains (single
- *     scattering seen through a refracting boundary, Walter et al. 2009).
+ *   - a delta light behind a refracting boundary cannot be reached by
+ *     next-event estimation. Light subpaths carry the light through the
+ *     specular chain; their segments after the first specular event are
+ *     "beams", and each camera vertex connects to a point on each beam
+ *     (equiangular or exponential, Kulla and Fajardo 2012). A vertex inside a
+ *     refracting medium also makes its own beam: a uniform direction finds a
+ *     boundary point s where the light refracts in. Both strategies make the
+ *     single-refraction beams and are combined there by the balance
+ *     heuristic; no strategy reaches a beam point that is the only scattering
+ *     vertex between two specular chains (single scattering seen through a
+ *     refracting boundary, Walter et al. 2009), which is missing.
  * Depth counts scattering vertices (volume events and surface bounces, not
  * dielectric interface events): depth 1 is single scattering and reproduces
  * `reference`. */
@@ -108,7 +111,6 @@ static const lu_param_desc k_params[P_COUNT] = {
 #define PT_MAX_MEDIA 128
 #define PT_MAX_CROSSINGS 256 /* surfaces a shadow ray may cross */
 #define PT_MAX_SPECULAR 256  /* dielectric events per path */
-#define PT_MAX_BEAMS 64
 #define PT_MAX_LIGHT_SEGMENTS 16
 
 typedef struct pt_medium {
@@ -188,6 +190,8 @@ struct pt_state {
     bool have_delta_lights;
     bool have_point_lights; /* point or spot */
     double *accum;
+    pt_beam *beam_buf; /* beam_cap per thread */
+    int beam_cap;
     lu_image *out;
     int pass_begin, pass_end;
     atomic_llong rows_done;
@@ -604,6 +608,46 @@ static lu_vec3 beam_scatter(const pt_state *st, lu_vec3 y, lu_vec3 u, lu_vec3 v,
     return sum;
 }
 
+/* Clips [*a, *b] of the line o + t d to a spot light's outer cone (its
+ * falloff is exactly zero outside). A cone of half-angle below 90 degrees
+ * meets a line in one interval: cut at the roots of the cone's quadratic and
+ * keep the hull of the pieces whose midpoints are inside. */
+static bool clip_to_cone(lu_k_light kl, lu_vec3 o, lu_vec3 d, float *a, float *b) {
+    float c = kl.cos_outer;
+    if (!(c > 0.0f)) return true;
+    lu_vec3 w = lu_v3_sub(o, kl.position);
+    float wa = lu_v3_dot(w, kl.direction), da = lu_v3_dot(d, kl.direction);
+    float qa = da * da - c * c, qb = 2.0f * (wa * da - c * c * lu_v3_dot(w, d)), qc = wa * wa - c * c * lu_v3_dot(w, w);
+    float cut[4] = {*a, *b, *a, *a};
+    int n = 2;
+    float disc = qb * qb - 4.0f * qa * qc;
+    if (disc >= 0.0f && qa != 0.0f) {
+        float sq = sqrtf(disc);
+        float r1 = (-qb - sq) / (2.0f * qa), r2 = (-qb + sq) / (2.0f * qa);
+        if (r1 > *a && r1 < *b) cut[n++] = r1;
+        if (r2 > *a && r2 < *b) cut[n++] = r2;
+    }
+    for (int i = 1; i < n; i++) /* sort the few cut points */
+        for (int j = i; j > 0 && cut[j] < cut[j - 1]; j--) {
+            float t = cut[j];
+            cut[j] = cut[j - 1];
+            cut[j - 1] = t;
+        }
+    float lo = INFINITY, hi = -INFINITY;
+    for (int i = 0; i + 1 < n; i++) {
+        float m = 0.5f * (cut[i] + cut[i + 1]);
+        lu_vec3 y = lu_v3_sub(lu_v3_madd(o, d, m), kl.position);
+        float len = lu_v3_len(y);
+        if (len > 0.0f && lu_v3_dot(y, kl.direction) >= c * len) {
+            lo = fminf(lo, cut[i]);
+            hi = fmaxf(hi, cut[i + 1]);
+        }
+    }
+    *a = lo;
+    *b = hi;
+    return hi > lo;
+}
+
 /* Direct light from point and spot lights scattered towards -d anywhere on
  * the segment o + t d, t in (0, t_end), through the media active under
  * `mask`. Free-flight vertices near such a light carry 1 / d^2, a weight of
@@ -625,14 +669,16 @@ static lu_vec3 segment_nee(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end
         lambda = fmaxf(lambda, pm->lambda);
     }
     if (!(b0 > a0)) return sum;
-    float len = b0 - a0;
-    lu_vec3 start = lu_v3_madd(o, d, a0);
     uint64_t enclosing = mask & st->refract_bits;
     for (int l = 0; l < sc->light_count; l++) {
         lu_light_type type = sc->lights[l].type;
         if (type != LU_LIGHT_POINT && type != LU_LIGHT_SPOT) continue;
         if (enclosing & ~st->light_mask[l]) continue;
         const lu_k_light kl = st->klights[l];
+        float ta = a0, tb = b0;
+        if (type == LU_LIGHT_SPOT && !clip_to_cone(kl, o, d, &ta, &tb)) continue;
+        float len = tb - ta;
+        lu_vec3 start = lu_v3_madd(o, d, ta);
         lu_k_equiangular eq = lu_k_equiangular_make(kl.position, start, d, len);
         bool use_exp = lambda * len > 1e-4f;
         float pick = rnd(rng), u = rnd(rng);
@@ -646,7 +692,7 @@ static lu_vec3 segment_nee(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end
         if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
         lu_vec3 sy = beam_scatter(st, y, lu_v3_neg(ls.wl), lu_v3_neg(d), mask);
         if (lu_v3_maxc(sy) <= 0.0f) continue;
-        lu_vec3 t0 = media_transmittance(st, o, d, a0 + s, mask, rng);
+        lu_vec3 t0 = media_transmittance(st, o, d, ta + s, mask, rng);
         if (lu_v3_maxc(t0) <= 0.0f) continue;
         lu_vec3 tl = transmit(st, y, ls.wl, ls.dist, mask, rng);
         if (lu_v3_maxc(tl) <= 0.0f) continue;
@@ -803,7 +849,7 @@ static lu_vec3 connect_vertex_beams(const pt_state *st, const pt_vertex *v, lu_k
 /* Light subpaths from every point, spot and directional light through
  * refracting boundaries; appends the beams (segments after the first specular
  * event that pass through some medium) and returns their count. */
-static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams) {
+static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams, int cap) {
     const lu_scene *s = st->scene;
     int nb = 0;
     for (int l = 0; l < s->light_count; l++) {
@@ -851,7 +897,7 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams) 
                 lu_hit hit;
                 bool has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, LU_K_FAR, &hit);
                 float t_end = has ? hit.t : LU_K_FAR;
-                if (specular && nb < PT_MAX_BEAMS) {
+                if (specular && nb < cap) { /* cap: every segment of every subpath fits */
                     /* Clip to the media present along the segment. */
                     float a0 = INFINITY, b0 = -INFINITY, lambda = 0.0f;
                     for (int m = 0; m < st->medium_count; m++) {
@@ -921,7 +967,7 @@ static lu_vec3 spectral_weight(lu_vec3 beta, lu_vec3 r) { return lu_v3_scale(bet
 
 /* hero: the channel whose coefficients choose free-flight events (spectral
  * MIS), or -1 for spectral tracking. */
-static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, lu_k_rng *rng) {
+static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt_beam *beams, lu_k_rng *rng) {
     const lu_scene *s = st->scene;
     lu_vec3 L = lu_v3s(0.0f), beta = lu_v3s(1.0f);
     lu_vec3 r = lu_v3s(1.0f); /* spectral MIS: p_c / p_hero of the free-flight decisions so far */
@@ -933,10 +979,9 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, lu
     bool prev_delta = true; /* last direction chosen by the camera or a dielectric: no MIS */
     float prev_pdf = 0.0f;
 
-    pt_beam beams[PT_MAX_BEAMS];
     int nbeams = 0;
     bool beams_on = st->have_refract && st->have_delta_lights && st->max_depth >= 2;
-    if (beams_on && st->light_paths > 0) nbeams = trace_light_paths(st, rng, beams);
+    if (beams_on && st->light_paths > 0) nbeams = trace_light_paths(st, rng, beams, st->beam_cap);
 
     for (int guard = 0; guard < (1 << 24); guard++) {
         lu_hit hit;
@@ -1099,7 +1144,7 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
                 }
                 lu_vec3 d = lu_k_camera_dir(st->cam, (float)x + ox, (float)y + oy);
                 int hero = st->spectral == SPECTRAL_HERO ? (int)((hero0 + (uint32_t)k) % 3u) : -1;
-                lu_vec3 c = trace_path(st, cam->position, d, hero, &rng);
+                lu_vec3 c = trace_path(st, cam->position, d, hero, st->beam_buf + (size_t)thread * st->beam_cap, &rng);
                 acc[0] += c.x;
                 acc[1] += c.y;
                 acc[2] += c.z;
@@ -1130,6 +1175,7 @@ static void pt_destroy(void *state) {
     free(st->surf_info);
     free(st->klights);
     free(st->light_mask);
+    free(st->beam_buf);
     free(st);
 }
 
@@ -1293,6 +1339,14 @@ static lu_result pt_render_impl(void *state, const lu_scene *scene, lu_image *ou
             st->light_mask[l] = inside_mask_at(st, scene->lights[l].position);
     }
     st->camera_mask = inside_mask_at(st, c->position);
+    st->beam_cap = st->delta_light_count * st->light_paths * PT_MAX_LIGHT_SEGMENTS;
+    free(st->beam_buf);
+    st->beam_buf = st->beam_cap ? calloc((size_t)st->beam_cap * lu_thread_count(), sizeof *st->beam_buf) : NULL;
+    if (st->beam_cap && !st->beam_buf) {
+        free(st->accum);
+        st->accum = NULL;
+        return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
+    }
 
     int every = prog && prog->fn && prog->every > 0 ? prog->every : st->spp;
     atomic_store(&st->rows_done, 0);
