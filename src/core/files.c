@@ -42,9 +42,8 @@ void lu_atomic_abort(lu_atomic_file *f) {
     if (f->temp_path[0]) remove(f->temp_path);
 }
 
-lu_result lu_read_file(const char *path, size_t max_bytes, char **data, size_t *size, lu_error *err) {
-    *data = NULL;
-    *size = 0;
+lu_result lu_open_regular(const char *path, void **fp_out, uint64_t *size, lu_error *err) {
+    *fp_out = NULL;
     FILE *fp = fopen(path, "rb");
     if (!fp) return lu_fail(err, LU_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     struct stat st;
@@ -52,12 +51,24 @@ lu_result lu_read_file(const char *path, size_t max_bytes, char **data, size_t *
         fclose(fp);
         return lu_fail(err, LU_ERR_IO, "%s: not a regular file", path);
     }
-    if ((unsigned long long)st.st_size > max_bytes) {
+    *fp_out = fp;
+    *size = (uint64_t)st.st_size;
+    return LU_OK;
+}
+
+lu_result lu_read_file(const char *path, size_t max_bytes, char **data, size_t *size, lu_error *err) {
+    *data = NULL;
+    *size = 0;
+    FILE *fp;
+    uint64_t file_size;
+    lu_result r = lu_open_regular(path, (void **)&fp, &file_size, err);
+    if (r != LU_OK) return r;
+    if (file_size > max_bytes) {
         fclose(fp);
-        return lu_fail(err, LU_ERR_LIMIT, "%s: %lld bytes exceeds the limit of %zu", path, (long long)st.st_size,
-                       max_bytes);
+        return lu_fail(err, LU_ERR_LIMIT, "%s: %llu bytes exceeds the limit of %zu", path,
+                       (unsigned long long)file_size, max_bytes);
     }
-    size_t n = (size_t)st.st_size;
+    size_t n = (size_t)file_size;
     char *buf = malloc(n + 1);
     if (!buf) {
         fclose(fp);

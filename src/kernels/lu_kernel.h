@@ -28,6 +28,7 @@
 #define LU_FN
 #define LU_INOUT(T) inout T
 #define LU_OUT(T) out T
+#define LU_OUT_ARRAY(T) out T   /* LU_OUT_ARRAY(float) y[36]: an array filled by the callee */
 #define LU_REF(x) x
 #define LU_DEREF(x) x
 #define LU_TYPEDEF(name)
@@ -106,6 +107,7 @@ bool lu_v3_finite(vec3 a) { return !any(isnan(a)) && !any(isinf(a)); }
 #define LU_FN static inline
 #define LU_INOUT(T) T *
 #define LU_OUT(T) T *
+#define LU_OUT_ARRAY(T) T       /* arrays are passed by pointer in C anyway */
 #define LU_REF(x) (&(x))
 #define LU_DEREF(x) (*(x))
 #define LU_TYPEDEF(name) typedef struct name name;
@@ -117,8 +119,6 @@ bool lu_v3_finite(vec3 a) { return !any(isnan(a)) && !any(isinf(a)); }
 #define lu_abs fabsf
 #define lu_floor floorf
 #define lu_ceil ceilf
-#define lu_min fminf
-#define lu_max fmaxf
 #define lu_sin sinf
 #define lu_cos cosf
 #define lu_acos acosf
@@ -128,6 +128,10 @@ bool lu_v3_finite(vec3 a) { return !any(isnan(a)) && !any(isinf(a)); }
 #define lu_isfinite(x) isfinite(x)
 typedef lu_vec3 vec3;
 typedef unsigned int uint;
+/* Plain comparisons, like GLSL's min/max (whose NaN behaviour is undefined):
+ * fminf/fmaxf are out-of-line libm calls on baseline x86-64. */
+static inline float lu_min(float a, float b) { return a < b ? a : b; }
+static inline float lu_max(float a, float b) { return a > b ? a : b; }
 static inline float lu_clamp(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
 static inline float lu_mix(float a, float b, float t) { return a + (b - a) * t; }
 #endif

@@ -249,6 +249,40 @@ static uint32_t hash_u32(uint32_t x) {
 
 /* ---- lights at a point ----------------------------------------------------- */
 
+/* What multiplies L_env(w) * T(x, w) in an environment integral: the phase
+ * function at a medium point, or the BRDF times cosine at a surface point. */
+typedef struct env_weight {
+    enum { ENV_PHASE, ENV_BRDF } kind;
+    lu_vec3 dir;             /* ENV_PHASE: the camera ray direction; ENV_BRDF: wo */
+    float g;
+    lu_vec3 n;               /* ENV_BRDF: the normal facing the viewer */
+    const lu_material *mat;
+} env_weight;
+
+/* (4 pi / N) * sum over N spherical-Fibonacci directions w of
+ * weight(w) * L_env(w) * T(x, w): a quadrature of the sphere that converges as
+ * env_samples grows (tests check it against closed forms). */
+static lu_vec3 env_integral(ref_state *st, thread_scratch *ts, const lu_light *light, lu_vec3 x, float phi0,
+                            const env_weight *wt) {
+    lu_vec3 acc = lu_v3s(0.0f);
+    for (int i = 0; i < st->env_samples; i++) {
+        lu_vec3 w = fibonacci_dir(i, st->env_samples, phi0);
+        lu_vec3 f;
+        if (wt->kind == ENV_PHASE) {
+            f = lu_v3s(lu_k_phase_hg(lu_v3_dot(wt->dir, w), wt->g));
+        } else {
+            if (lu_v3_dot(w, wt->n) <= 0.0f) continue;
+            f = lu_k_blinn_phong(wt->mat->albedo, wt->mat->specular, wt->mat->shininess, wt->n, wt->dir, w);
+        }
+        lu_vec3 tr = transmittance(st, ts, x, w, LU_K_FAR);
+        if (lu_v3_maxc(tr) <= 0.0f) continue;
+        acc = lu_v3_add(acc, lu_v3_mul(lu_v3_mul(f, env_radiance(light, w)), tr));
+    }
+    return lu_v3_scale(acc, 4.0f * LU_PI / (float)st->env_samples);
+}
+
+
+
 /* In-scattered radiance towards -d at x in medium m: sum over lights of
  * phase * irradiance * transmittance (sigma_s applied by the caller). */
 static lu_vec3 inscatter_source(ref_state *st, thread_scratch *ts, int m, lu_vec3 x, lu_vec3 d, float phi0) {
@@ -258,15 +292,8 @@ static lu_vec3 inscatter_source(ref_state *st, thread_scratch *ts, int m, lu_vec
     for (int l = 0; l < s->light_count; l++) {
         const lu_light *light = &s->lights[l];
         if (light->type == LU_LIGHT_ENVIRONMENT) {
-            lu_vec3 acc = lu_v3s(0.0f);
-            for (int i = 0; i < st->env_samples; i++) {
-                lu_vec3 w = fibonacci_dir(i, st->env_samples, phi0);
-                lu_vec3 tr = transmittance(st, ts, x, w, LU_K_FAR);
-                if (lu_v3_maxc(tr) <= 0.0f) continue;
-                float p = lu_k_phase_hg(lu_v3_dot(d, w), g);
-                acc = lu_v3_add(acc, lu_v3_scale(lu_v3_mul(env_radiance(light, w), tr), p));
-            }
-            sum = lu_v3_madd(sum, acc, 4.0f * LU_PI / (float)st->env_samples);
+            env_weight w = {ENV_PHASE, d, g, lu_v3s(0.0f), NULL};
+            sum = lu_v3_add(sum, env_integral(st, ts, light, x, phi0, &w));
             continue;
         }
         lu_k_light_sample ls = lu_k_light_arrive(st->klights[l], x);
@@ -287,15 +314,8 @@ static lu_vec3 surface_radiance(ref_state *st, thread_scratch *ts, lu_vec3 x, lu
     for (int l = 0; l < s->light_count; l++) {
         const lu_light *light = &s->lights[l];
         if (light->type == LU_LIGHT_ENVIRONMENT) {
-            lu_vec3 acc = lu_v3s(0.0f);
-            for (int i = 0; i < st->env_samples; i++) {
-                lu_vec3 w = fibonacci_dir(i, st->env_samples, phi0);
-                if (lu_v3_dot(w, n) <= 0.0f) continue;
-                lu_vec3 f = lu_k_blinn_phong(mat->albedo, mat->specular, mat->shininess, n, wo, w);
-                lu_vec3 tr = transmittance(st, ts, x, w, LU_K_FAR);
-                acc = lu_v3_add(acc, lu_v3_mul(lu_v3_mul(f, env_radiance(light, w)), tr));
-            }
-            sum = lu_v3_madd(sum, acc, 4.0f * LU_PI / (float)st->env_samples);
+            env_weight w = {ENV_BRDF, wo, 0.0f, n, mat};
+            sum = lu_v3_add(sum, env_integral(st, ts, light, x, phi0, &w));
             continue;
         }
         lu_k_light_sample ls = lu_k_light_arrive(st->klights[l], x);

@@ -58,24 +58,31 @@ void lu_grid_update_range(lu_grid *g) {
  * exactly like a GL_LINEAR texture with a zero border: weights come from the
  * fractional part, the eight neighbours from lu_grid_at. */
 float lu_grid_sample(const lu_grid *g, lu_vec3 p) {
-    /* Also rejects NaN, and keeps floorf's result inside int range. */
+    /* Also rejects NaN, and keeps the integer conversions in range. */
     if (!(p.x >= -1.0f && p.y >= -1.0f && p.z >= -1.0f && p.x <= (float)g->nx && p.y <= (float)g->ny &&
           p.z <= (float)g->nz))
         return 0.0f;
-    float fx = floorf(p.x), fy = floorf(p.y), fz = floorf(p.z);
-    int x = (int)fx, y = (int)fy, z = (int)fz;
-    float tx = p.x - fx, ty = p.y - fy, tz = p.z - fz;
-    float c000 = lu_grid_at(g, x, y, z), c100 = lu_grid_at(g, x + 1, y, z);
-    float c010 = lu_grid_at(g, x, y + 1, z), c110 = lu_grid_at(g, x + 1, y + 1, z);
-    float c001 = lu_grid_at(g, x, y, z + 1), c101 = lu_grid_at(g, x + 1, y, z + 1);
-    float c011 = lu_grid_at(g, x, y + 1, z + 1), c111 = lu_grid_at(g, x + 1, y + 1, z + 1);
-    float c00 = (1.0f - tx) * c000 + tx * c100;
-    float c10 = (1.0f - tx) * c010 + tx * c110;
-    float c01 = (1.0f - tx) * c001 + tx * c101;
-    float c11 = (1.0f - tx) * c011 + tx * c111;
-    float c0 = (1.0f - ty) * c00 + ty * c10;
-    float c1 = (1.0f - ty) * c01 + ty * c11;
-    return (1.0f - tz) * c0 + tz * c1;
+    /* p + 1 >= 0, so truncation is floor (floorf is a libm call on baseline x86-64,
+     * and this is the reference renderer's innermost loop). */
+    int x = (int)(p.x + 1.0f) - 1, y = (int)(p.y + 1.0f) - 1, z = (int)(p.z + 1.0f) - 1;
+    float tx = p.x - (float)x, ty = p.y - (float)y, tz = p.z - (float)z;
+    float c000, c100, c010, c110, c001, c101, c011, c111;
+    if (x >= 0 && y >= 0 && z >= 0 && x < g->nx - 1 && y < g->ny - 1 && z < g->nz - 1) {
+        /* Interior: all eight corners exist, no per-corner checks. */
+        size_t sx = 1, sy = (size_t)g->nx, sz = (size_t)g->nx * g->ny;
+        const float *c = g->data + (size_t)z * sz + (size_t)y * sy + (size_t)x;
+        c000 = c[0], c100 = c[sx], c010 = c[sy], c110 = c[sy + sx];
+        c001 = c[sz], c101 = c[sz + sx], c011 = c[sz + sy], c111 = c[sz + sy + sx];
+    } else {
+        c000 = lu_grid_at(g, x, y, z), c100 = lu_grid_at(g, x + 1, y, z);
+        c010 = lu_grid_at(g, x, y + 1, z), c110 = lu_grid_at(g, x + 1, y + 1, z);
+        c001 = lu_grid_at(g, x, y, z + 1), c101 = lu_grid_at(g, x + 1, y, z + 1);
+        c011 = lu_grid_at(g, x, y + 1, z + 1), c111 = lu_grid_at(g, x + 1, y + 1, z + 1);
+    }
+    float c00 = c000 + tx * (c100 - c000), c10 = c010 + tx * (c110 - c010);
+    float c01 = c001 + tx * (c101 - c001), c11 = c011 + tx * (c111 - c011);
+    float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
+    return c0 + tz * (c1 - c0);
 }
 
 lu_aabb lu_grid_index_support(const lu_grid *g) {
@@ -111,18 +118,15 @@ lu_result lu_grid_load_raw(const char *path, int nx, int ny, int nz, lu_grid *g,
         return lu_fail(err, LU_ERR_LIMIT, "%s: raw grid of %d x %d x %d voxels exceeds the limit of %llu voxels", path,
                        nx, ny, nz, (unsigned long long)LU_MAX_GRID_VOXELS);
     uint64_t expect = xy * (uint64_t)nz * 4u;
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return lu_fail(err, LU_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    struct stat st;
-    if (fstat(fileno(fp), &st) != 0 || !S_ISREG(st.st_mode)) {
-        fclose(fp);
-        return lu_fail(err, LU_ERR_IO, "%s: not a regular file", path);
-    }
-    if ((uint64_t)st.st_size != expect) {
+    FILE *fp;
+    uint64_t file_size;
+    lu_result opened = lu_open_regular(path, (void **)&fp, &file_size, err);
+    if (opened != LU_OK) return opened;
+    if (file_size != expect) {
         fclose(fp);
         return lu_fail(err, LU_ERR_FORMAT,
-                       "%s: raw float32 grid of %d x %d x %d voxels needs %llu bytes, but the file has %lld bytes", path,
-                       nx, ny, nz, (unsigned long long)expect, (long long)st.st_size);
+                       "%s: raw float32 grid of %d x %d x %d voxels needs %llu bytes, but the file has %llu bytes", path,
+                       nx, ny, nz, (unsigned long long)expect, (unsigned long long)file_size);
     }
     lu_result r = lu_grid_alloc(g, nx, ny, nz, err);
     if (r != LU_OK) {

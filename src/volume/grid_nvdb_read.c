@@ -689,14 +689,11 @@ static lu_result load_from(nvdb_src *s, const char *grid_name, lu_grid *g, lu_er
 
 lu_result lu_grid_load_nvdb(const char *path, const char *grid_name, lu_grid *g, lu_error *err) {
     memset(g, 0, sizeof *g);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return lu_fail(err, LU_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    struct stat st;
-    if (fstat(fileno(fp), &st) != 0 || !S_ISREG(st.st_mode)) {
-        fclose(fp);
-        return lu_fail(err, LU_ERR_IO, "%s: not a regular file", path);
-    }
-    nvdb_src s = {.fp = fp, .size = (uint64_t)st.st_size, .label = path};
+    FILE *fp;
+    uint64_t file_size;
+    lu_result opened = lu_open_regular(path, (void **)&fp, &file_size, err);
+    if (opened != LU_OK) return opened;
+    nvdb_src s = {.fp = fp, .size = file_size, .label = path};
     lu_result r = load_from(&s, grid_name, g, err);
     fclose(fp);
     return r;

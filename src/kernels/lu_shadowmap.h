@@ -1,0 +1,37 @@
+/* lu_shadowmap.h — percentage-closer lookup in a shadow map (kernel: C and
+ * GLSL). A shadow map stores, per texel of a light view, the depth of the
+ * first opaque surface along the texel's centre ray (lu_lightview.h depth;
+ * a huge value where nothing is hit).
+ *
+ * The backend defines, before including this file,
+ *   float lu_k_shadow_depth(LU_CTX_PARAM, int map, int i, int j)
+ * returning the stored depth of texel (i, j) (clamped to the map by the
+ * caller's indices being in range). */
+#ifndef LU_SHADOWMAP_H
+#define LU_SHADOWMAP_H
+
+#include "lu_kernel.h"
+#include "lu_lightview.h"
+
+/* Fraction of light reaching a point at (u, v, depth): bilinear-weighted
+ * comparison of the 4 nearest texels (percentage-closer filtering), with a
+ * depth bias that absorbs the map's discretisation on lit surfaces. */
+LU_FN float lu_k_shadow_visibility(LU_CTX_PARAM, int map, int res, vec3 uvd, float bias) {
+    float x = uvd.x * lu_float(res) - 0.5f, y = uvd.y * lu_float(res) - 0.5f;
+    float fx = lu_floor(x), fy = lu_floor(y);
+    float ax = x - fx, ay = y - fy;
+    int x0 = lu_int(fx), y0 = lu_int(fy);
+    float vis = 0.0f;
+    for (int j = 0; j < 2; j++) {
+        for (int i = 0; i < 2; i++) {
+            int xi = lu_int(lu_clamp(lu_float(x0 + i), 0.0f, lu_float(res - 1)));
+            int yj = lu_int(lu_clamp(lu_float(y0 + j), 0.0f, lu_float(res - 1)));
+            float w = (i == 1 ? ax : 1.0f - ax) * (j == 1 ? ay : 1.0f - ay);
+            float lit = uvd.z <= lu_k_shadow_depth(LU_CTX, map, xi, yj) + bias ? 1.0f : 0.0f;
+            vis += w * lit;
+        }
+    }
+    return vis;
+}
+
+#endif

@@ -1,0 +1,31 @@
+/* Internal: light-space views of a scene's lights and CPU shadow maps.
+ * The projection math is the kernel lu_lightview.h; this builds the views
+ * (framing a region) and fills shadow maps with Embree. */
+#ifndef LU_METHODS_LIGHTVIEW_H
+#define LU_METHODS_LIGHTVIEW_H
+
+#include <lucent/lucent.h>
+
+#include "kernels/lu_lightview.h"
+
+/* One view (spot, directional) or six cube faces (point light). */
+typedef struct lu_lightviews {
+    int count;
+    lu_k_lightview view[6];
+} lu_lightviews;
+
+/* Views of light l framing `region` (a world box: the media, or the whole
+ * scene). Environment lights have none (count 0). */
+void lu_lightviews_for_light(const lu_light *l, lu_aabb region, lu_lightviews *out);
+
+/* Index of the view that sees x (the cube face for point lights), or -1 if
+ * x is outside every view. */
+int lu_lightviews_select(const lu_lightviews *v, lu_vec3 x);
+
+/* Shadow map of `opaque` (may be NULL: nothing casts) for view v: res x res
+ * depths of the first hit along each texel's centre ray, or `far_value`
+ * where nothing is hit. depth has res*res floats, row j = v index. */
+lu_result lu_shadow_map_build(const lu_accel *opaque, const lu_k_lightview *v, int res, float far_value, float *depth,
+                              lu_error *err);
+
+#endif

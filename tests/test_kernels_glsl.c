@@ -1,0 +1,50 @@
+/* Every kernel header must compile as GLSL 4.50 too (that is what makes it a
+ * kernel): one compute shader includes them all, on llvmpipe here and in CI. */
+#include <lucent/lucent.h>
+
+#include <dirent.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "backends/gpu.h"
+#include "lu_test.h"
+
+static void test_all_kernels_compile_as_glsl(void) {
+    /* Hooks the kernels expect from a backend, as trivial GLSL definitions. */
+    char src[16384];
+    size_t n = (size_t)snprintf(src, sizeof src,
+                                "layout(local_size_x = 1) in;\n"
+                                "layout(std430, binding = 0) buffer Out { float v[]; } o;\n"
+                                "#include \"kernels/lu_kernel.h\"\n"
+                                "float lu_k_density(LU_CTX_PARAM, int m, vec3 p) { return p.x; }\n"
+                                "float lu_k_shadow_depth(LU_CTX_PARAM, int map, int i, int j) { return 1.0; }\n");
+    int count = 0;
+    DIR *dir = opendir(LU_SOURCE_DIR "/src/kernels");
+    CHECK(dir != NULL);
+    if (!dir) return;
+    for (struct dirent *e; (e = readdir(dir));) {
+        size_t len = strlen(e->d_name);
+        if (len < 3 || strcmp(e->d_name + len - 2, ".h") != 0) continue;
+        n += (size_t)snprintf(src + n, sizeof src - n, "#include \"kernels/%s\"\n", e->d_name);
+        count++;
+    }
+    closedir(dir);
+    snprintf(src + n, sizeof src - n, "void main() { o.v[0] = lu_smoothstep(0.0, 1.0, 0.5); }\n");
+    fprintf(stderr, "  %d kernel headers\n", count);
+    CHECK(count >= 8);
+
+    lu_error err = {0};
+    lu_gpu_context *ctx = NULL;
+    CHECK_OK(lu_gpu_context_create(&ctx, LU_GPU_AUTO, &err), &err);
+    if (!ctx) return;
+    lu_gpu_source overlay = {"shaders/all_kernels.comp", src};
+    lu_gpu_program *prog = NULL;
+    CHECK_OK(lu_gpu_program_create_ex(ctx, "shaders/all_kernels.comp", NULL, &overlay, 1, &prog, &err), &err);
+    lu_gpu_program_destroy(prog);
+    lu_gpu_context_destroy(ctx);
+}
+
+int main(void) {
+    RUN_TEST(test_all_kernels_compile_as_glsl);
+    TEST_EXIT();
+}
