@@ -2,7 +2,8 @@
 # Regenerates the measurements of docs/pathtrace.md: images, ratio maps, CSV
 # tables and the noise plot under docs/pathtrace/. About 25 minutes on the
 # 2-core machine the doc was written on (most of it the two marble renders;
-# SKIP_MARBLE=1 leaves them out).
+# SKIP_MARBLE=1 leaves them out; SKIP_STRATEGIES=1 the strategy table;
+# SCENES="a b" limits sections 1-2 to those scenes; OUT=dir writes elsewhere).
 #
 #   scripts/pathtrace_docs.sh [BUILD_DIR]      (default: build)
 #
@@ -13,14 +14,14 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${1:-build}
 L=$BUILD/lucent
-OUT=docs/pathtrace
+OUT=${OUT:-docs/pathtrace}
 PY="python3 scripts/pathtrace_analyze.py"
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 mkdir -p "$OUT"
 export LUCENT_QUIET=1
 
-SCENES="demo homogeneous_sphere cube_torus layered_cube smoke_glow spot_shaft dusty_room smoke_box bunny_fog"
+SCENES=${SCENES:-"demo homogeneous_sphere cube_torus layered_cube smoke_glow spot_shaft dusty_room smoke_box bunny_fog"}
 
 # Half the camera's size: 160x120 (4:3 scenes) or 128x128 (square ones).
 size_of() {
@@ -94,6 +95,7 @@ compare_setting() { # scene size label spp settings...
     e=$("$L" compare "$TMP/a.pfm" "$TMP/b.pfm" | awk '/^rel_l2/ {printf "%.4f", $2 / sqrt(2)}')
     echo "$s,$label,$spp,$e,$ms" >>"$OUT/strategies.csv"
 }
+if [[ -z ${SKIP_STRATEGIES:-} ]]; then
 echo "strategies"
 for s in smoke_glow spot_shaft; do
     compare_setting "$s" 80x60 "depth1 equiangular" 64 max_depth=1
@@ -115,6 +117,7 @@ if have_data; then
     compare_setting marble_bunny 48x48 "full light_paths=0" 16 light_paths=0
     compare_setting marble_bunny 48x48 "full light_paths=2" 16 light_paths=2
 fi
+fi
 
 # ---- 4. marble bunny and dragon: the subsurface truth for bssrdf -------------------------
 # The PFMs are kept (docs/pathtrace/*.pathtrace.pfm) so the bssrdf comparison
@@ -128,5 +131,5 @@ if have_data && [[ -z ${SKIP_MARBLE:-} ]]; then
 fi
 
 cp "$TMP/times.csv" "$OUT/times.csv"
-if command -v gnuplot >/dev/null; then gnuplot scripts/pathtrace_plot.gp; fi
+if command -v gnuplot >/dev/null && [[ $OUT == docs/pathtrace ]]; then gnuplot scripts/pathtrace_plot.gp; fi
 echo "done: $OUT"
