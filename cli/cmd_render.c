@@ -15,10 +15,28 @@ static void usage(void) {
            "  --size WxH          override the camera's image size\n"
            "  --exposure E        PNG only: scale by 2^E before the sRGB curve (default 0)\n"
            "  --half              EXR only: store half floats\n"
+           "  --progressive-every N  progressive methods (pathtrace): rewrite the output\n"
+           "                      every N passes (samples per pixel) while rendering\n"
            "  -o, --output FILE   output image; the format follows the extension\n"
            "\n"
            "Prints prepare and render times on stderr. The file is written under a\n"
            "temporary name and renamed, so a failed render leaves no partial file.\n");
+}
+
+/* --progressive-every: each partial image replaces the output file
+ * (atomically, so a viewer never sees half a file). */
+typedef struct progressive_sink {
+    const char *path;
+    const lu_image_save_desc *save;
+} progressive_sink;
+
+static void save_partial(void *user, const lu_image *partial, int done, int total) {
+    const progressive_sink *s = user;
+    lu_error err = {0};
+    if (lu_image_save(partial, s->path, s->save, &err) != LU_OK)
+        fprintf(stderr, "lucent render: progressive write failed: %s\n", err.message);
+    else if (!getenv("LUCENT_QUIET"))
+        fprintf(stderr, "lucent render: %s after %d of %d passes\n", s->path, done, total);
 }
 
 int lu_cmd_render(int argc, char **argv) {
@@ -26,7 +44,7 @@ int lu_cmd_render(int argc, char **argv) {
     lu_backend backend = LU_BACKEND_CPU;
     lu_kvlist settings = {0};
     lu_image_save_desc save = {0};
-    int width = 0, height = 0;
+    int width = 0, height = 0, progressive_every = 0;
     lu_error err = {0};
     int rc = LU_EXIT_OK;
     for (int i = 1; i < argc; i++) {
@@ -48,6 +66,13 @@ int lu_cmd_render(int argc, char **argv) {
             char *end;
             save.exposure = strtof(argv[++i], &end);
             if (*end) rc = lu_cli_usage("render", "--exposure takes a number");
+        } else if (strcmp(a, "--progressive-every") == 0 && has_next) {
+            char *end;
+            long n = strtol(argv[++i], &end, 10);
+            if (*end || n < 1 || n > 1000000000L)
+                rc = lu_cli_usage("render", "--progressive-every takes a positive integer");
+            else
+                progressive_every = (int)n;
         } else if (strcmp(a, "--half") == 0) {
             save.exr_half = true;
         } else if ((strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) && has_next) {
@@ -78,8 +103,12 @@ int lu_cmd_render(int argc, char **argv) {
     }
     lu_renderer *r = NULL;
     lu_image img = {0};
-    if (lu_renderer_create(method, &scene, &settings, backend, &r, &err) != LU_OK ||
-        lu_renderer_render(r, &scene, &img, &err) != LU_OK || lu_image_save(&img, out_path, &save, &err) != LU_OK) {
+    progressive_sink sink = {out_path, &save};
+    bool created = lu_renderer_create(method, &scene, &settings, backend, &r, &err) == LU_OK;
+    if (created && progressive_every > 0 && !lu_renderer_set_progressive(r, save_partial, &sink, progressive_every))
+        fprintf(stderr, "lucent render: %s renders in one pass; --progressive-every ignored\n", method);
+    if (!created || lu_renderer_render(r, &scene, &img, &err) != LU_OK ||
+        lu_image_save(&img, out_path, &save, &err) != LU_OK) {
         rc = lu_cli_error("render", &err);
     } else {
         fprintf(stderr, "lucent render: %s %dx%d with %s on %s: prepare %.1f ms, render %.1f ms\n", out_path, img.width,

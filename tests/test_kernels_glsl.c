@@ -18,7 +18,8 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "#include \"kernels/lu_kernel.h\"\n"
                                 "float lu_k_density(LU_CTX_PARAM, int m, vec3 p) { return p.x; }\n"
                                 "float lu_k_shadow_depth(LU_CTX_PARAM, int map, int i, int j) { return 1.0; }\n"
-                                "float lu_k_bssrdf_fetch(LU_CTX_PARAM, int b, int i) { return float(b + i); }\n");
+                                "float lu_k_bssrdf_fetch(LU_CTX_PARAM, int b, int i) { return float(b + i); }\n"
+                                "float lu_k_majorant(LU_CTX_PARAM, int m, int bx, int by, int bz) { return 1.0; }\n");
     int count = 0;
     DIR *dir = opendir(LU_SOURCE_DIR "/src/kernels");
     CHECK(dir != NULL);

@@ -38,6 +38,16 @@ typedef struct lu_param_desc {
 
 #define LU_MAX_PARAMS 32
 
+/* Progressive output: a method that refines its image over passes (e.g.
+ * pathtrace, one sample per pixel per pass) calls fn with the current
+ * estimate after every `every` passes, except the last (render returns it). */
+typedef void (*lu_progressive_fn)(void *user, const lu_image *partial, int passes_done, int passes_total);
+typedef struct lu_progressive {
+    lu_progressive_fn fn;
+    void *user;
+    int every;
+} lu_progressive;
+
 typedef struct lu_method {
     const char *name;
     const char *summary;
@@ -50,6 +60,9 @@ typedef struct lu_method {
     /* out is created by the caller at the camera's size. */
     lu_result (*render)(void *state, const lu_scene *scene, lu_image *out, lu_error *err);
     void (*destroy)(void *state);
+    /* Optional (NULL for one-shot methods): render with progressive output. */
+    lu_result (*render_progressive)(void *state, const lu_scene *scene, lu_image *out, const lu_progressive *prog,
+                                    lu_error *err);
 } lu_method;
 
 const lu_method *const *lu_methods(int *count);
@@ -68,6 +81,7 @@ typedef struct lu_renderer {
     void *state;
     double prepare_ms;       /* wall time of the prepare step */
     double last_render_ms;   /* wall time of the latest render */
+    lu_progressive progressive;  /* see lu_renderer_set_progressive */
 } lu_renderer;
 
 lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu_kvlist *settings,
@@ -75,6 +89,10 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
 /* Creates `out` at the camera size if it is empty (width 0), else requires that size. */
 lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err);
 void lu_renderer_destroy(lu_renderer *r);
+/* Asks for the current image every `every` passes during lu_renderer_render
+ * (fn NULL or every <= 0: off). Returns false if the method renders in one
+ * shot (it then ignores the request). */
+bool lu_renderer_set_progressive(lu_renderer *r, lu_progressive_fn fn, void *user, int every);
 
 #ifdef __cplusplus
 }

@@ -11,6 +11,7 @@
 static const lu_method *const k_methods[] = {
     &lu_method_reference,
     &lu_method_bssrdf,
+    &lu_method_pathtrace,
 };
 
 const lu_method *const *lu_methods(int *count) {
@@ -152,9 +153,18 @@ lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *ou
                        out->height, c->width, c->height);
     }
     double t0 = lu_time_seconds();
-    lu_result e = r->method->render(r->state, scene, out, err);
+    lu_result e = r->progressive.fn && r->method->render_progressive
+                      ? r->method->render_progressive(r->state, scene, out, &r->progressive, err)
+                      : r->method->render(r->state, scene, out, err);
     r->last_render_ms = 1e3 * (lu_time_seconds() - t0);
     return e;
+}
+
+bool lu_renderer_set_progressive(lu_renderer *r, lu_progressive_fn fn, void *user, int every) {
+    r->progressive.fn = every > 0 ? fn : NULL;
+    r->progressive.user = user;
+    r->progressive.every = every;
+    return r->method->render_progressive != NULL;
 }
 
 void lu_renderer_destroy(lu_renderer *r) {

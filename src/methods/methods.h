@@ -8,6 +8,7 @@
 
 extern const lu_method lu_method_reference;
 extern const lu_method lu_method_bssrdf;
+extern const lu_method lu_method_pathtrace;
 
 /* The kernel-side light record (cone angles as cosines). */
 static inline lu_k_light lu_light_to_kernel(const lu_light *l) {
@@ -21,6 +22,27 @@ static inline lu_k_light lu_light_to_kernel(const lu_light *l) {
              : l->type == LU_LIGHT_SPOT ? LU_K_LIGHT_SPOT
                                         : LU_K_LIGHT_DIRECTIONAL;
     return k;
+}
+
+/* Bilinear lookup of an equirectangular radiance map (u wraps, v clamps),
+ * times scale; the mapping is lu_k_env_u / lu_k_env_v (lu_optics.h). */
+static inline lu_vec3 lu_env_lookup(const lu_image *im, float scale, lu_vec3 dir) {
+    float u = lu_k_env_u(dir) * (float)im->width - 0.5f, v = lu_k_env_v(dir) * (float)im->height - 0.5f;
+    float fx = floorf(u), fy = floorf(v);
+    float ax = u - fx, ay = v - fy;
+    lu_vec3 acc = lu_v3s(0.0f);
+    for (int j = 0; j < 2; j++) {
+        int y = (int)fy + j;
+        y = y < 0 ? 0 : (y >= im->height ? im->height - 1 : y);
+        for (int i = 0; i < 2; i++) {
+            int x = ((int)fx + i) % im->width;
+            if (x < 0) x += im->width;
+            const float *p = lu_image_px(im, x, y);
+            float wgt = (i ? ax : 1.0f - ax) * (j ? ay : 1.0f - ay);
+            acc = lu_v3_madd(acc, lu_v3(p[0], p[1], p[2]), wgt);
+        }
+    }
+    return lu_v3_scale(acc, scale);
 }
 
 #endif
