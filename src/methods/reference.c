@@ -210,25 +210,7 @@ static lu_vec3 transmittance(ref_state *st, thread_scratch *ts, lu_vec3 x, lu_ve
 
 /* ---- environment ---------------------------------------------------------- */
 
-static lu_vec3 env_radiance(const lu_light *l, lu_vec3 dir) {
-    const lu_image *im = &l->env;
-    float u = lu_k_env_u(dir) * (float)im->width - 0.5f, v = lu_k_env_v(dir) * (float)im->height - 0.5f;
-    float fx = floorf(u), fy = floorf(v);
-    float ax = u - fx, ay = v - fy;
-    lu_vec3 acc = lu_v3s(0.0f);
-    for (int j = 0; j < 2; j++) {
-        int y = (int)fy + j;
-        y = y < 0 ? 0 : (y >= im->height ? im->height - 1 : y);
-        for (int i = 0; i < 2; i++) {
-            int x = ((int)fx + i) % im->width;
-            if (x < 0) x += im->width;
-            const float *p = lu_image_px(im, x, y);
-            float wgt = (i ? ax : 1.0f - ax) * (j ? ay : 1.0f - ay);
-            acc = lu_v3_madd(acc, lu_v3(p[0], p[1], p[2]), wgt);
-        }
-    }
-    return lu_v3_scale(acc, l->env_scale);
-}
+static lu_vec3 env_radiance(const lu_light *l, lu_vec3 dir) { return lu_env_lookup(&l->env, l->env_scale, dir); }
 
 /* Direction i of n on a spherical Fibonacci lattice, rotated about Y by phi0. */
 static lu_vec3 fibonacci_dir(int i, int n, float phi0) {
