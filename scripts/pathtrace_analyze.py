@@ -14,6 +14,10 @@
       The colour scale of `ratio` as a 256 x 16 strip (left 0, right R).
   mean IMG.pfm
       Mean of each channel.
+  boxcmp A.pfm REF.pfm [--box K]
+      rel-L2 of A against REF after averaging both over K x K blocks (default 4;
+      a partial block at the edge is dropped), which tames a noisy REF's
+      per-pixel variance (by about K) while keeping structure coarser than K.
   png IMG.pfm OUT.png [--exposure E]
   pair A.pfm B.pfm OUT.png [--exposure E]
       Display PNG (2^E scale, exact sRGB curve, clamped); pair puts A and B
@@ -182,9 +186,28 @@ def cmd_mean(args):
     print(" ".join("%.6g" % (sum(d[c::3]) / n) for c in range(3)))
 
 
+def cmd_boxcmp(args):
+    k = int(args[args.index("--box") + 1]) if "--box" in args else 4
+    w, h, a = read_pfm(args[0])
+    w2, h2, b = read_pfm(args[1])
+    assert (w, h) == (w2, h2), "images differ in size"
+    num = den = 0.0
+    for by in range(h // k):
+        for bx in range(w // k):
+            for c in range(3):
+                sa = sb = 0.0
+                for y in range(by * k, by * k + k):
+                    for x in range(bx * k, bx * k + k):
+                        sa += a[(y * w + x) * 3 + c]
+                        sb += b[(y * w + x) * 3 + c]
+                num += (sa - sb) ** 2
+                den += sb * sb
+    print("%.6g" % math.sqrt(num / den))
+
+
 if __name__ == "__main__":
     cmds = {"ratio": cmd_ratio, "noise": cmd_noise, "bar": cmd_bar, "mean": cmd_mean, "png": cmd_png,
-            "pair": cmd_pair}
+            "pair": cmd_pair, "boxcmp": cmd_boxcmp}
     if len(sys.argv) < 2 or sys.argv[1] not in cmds:
         sys.stderr.write(__doc__)
         sys.exit(2)
