@@ -87,6 +87,12 @@ lu_k_medium lu_scene_medium(int m) {
     return k;
 }
 
+/* The generic scene hooks of kernels that loop over media and lights. */
+int lu_k_medium_count(LU_CTX_PARAM) { return lu_scene_medium_count(); }
+lu_k_medium lu_k_medium_get(LU_CTX_PARAM, int m) { return lu_scene_medium(m); }
+int lu_k_light_count(LU_CTX_PARAM) { return lu_scene_light_count(); }
+lu_k_light lu_k_light_get(LU_CTX_PARAM, int l) { return lu_scene_light(l); }
+
 /* Trilinear density at an index-space position: lu_grid_sample's convention
  * (zero outside [0, n-1]) through the zero-border GL_LINEAR texture. The
  * sampler index is a literal in each branch, so no dynamically uniform

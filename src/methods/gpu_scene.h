@@ -17,6 +17,8 @@
  *
  * Shader side: `#include "../kernels/lu_scene_gpu.glsl"` first; it defines
  *   lu_k_density(LU_CTX_PARAM, int m, vec3 p_index)   (hook for lu_march.h etc.)
+ *   lu_k_medium_count/lu_k_medium_get/lu_k_light_count/lu_k_light_get (LU_CTX_PARAM, ...)
+ *     (the generic hooks of kernels looping over media and lights);
  *   lu_k_medium lu_scene_medium(int m);  lu_k_light lu_scene_light(int l);
  *   lu_k_camera lu_scene_camera();  vec3 lu_scene_camera_position();
  *   int lu_scene_width(), lu_scene_height(), lu_scene_medium_count(), lu_scene_light_count();
