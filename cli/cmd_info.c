@@ -3,13 +3,19 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "backends/gpu.h"
 #include "cli.h"
 
 static void usage(void) {
     printf("usage: lucent info FILE\n"
+           "       lucent info --gpu [--software|--hardware]\n"
            "\n"
            "FILE is a scene (.json), a mesh (.obj, .ply, .ply.gz), a NanoVDB grid (.nvdb)\n"
-           "or an image (.png, .exr, .pfm). Prints counts, bounds, value ranges and voxel sizes.\n");
+           "or an image (.png, .exr, .pfm). Prints counts, bounds, value ranges and voxel sizes.\n"
+           "--gpu makes the GPU backend's OpenGL 4.5 context (headless EGL: hardware devices\n"
+           "first, then Mesa's software device, then the surfaceless platform; --software or\n"
+           "--hardware insists on one kind) and prints vendor, renderer, version, the EGL\n"
+           "devices found and the limits methods depend on. Exits 1 when no context can be made.\n");
 }
 
 static void print_box(const char *indent, lu_aabb b) {
@@ -90,12 +96,45 @@ static void print_image(const lu_image *im) {
     printf("image     %d x %d, RGB\nvalues    [%.6g, %.6g], mean %.6g\n", im->width, im->height, lo, hi, sum / (double)n);
 }
 
+static int print_gpu(lu_gpu_device_pref pref) {
+    lu_error err = {0};
+    lu_gpu_context *ctx = NULL;
+    if (lu_gpu_context_create(&ctx, pref, &err) != LU_OK) return lu_cli_error("info", &err);
+    lu_gpu_info in;
+    lu_gpu_info_get(ctx, &in);
+    printf("vendor        %s\nrenderer      %s%s\nversion       %s\nGLSL          %s\n", in.vendor, in.renderer,
+           in.is_software ? " (software)" : "", in.version, in.glsl_version);
+    printf("EGL path      %s\ndevice        %s\nEGL devices   %s\n", in.egl_path, in.device,
+           in.device_list[0] ? in.device_list : "(none enumerated)");
+    printf("max 3D texture        %d\n", in.max_3d_texture_size);
+    printf("max SSBO size         %lld bytes\n", (long long)in.max_ssbo_size);
+    printf("max SSBO bindings     %d\n", in.max_ssbo_bindings);
+    printf("max texture units     %d\n", in.max_texture_units);
+    printf("max image units       %d\n", in.max_image_units);
+    printf("max work groups       %d x %d x %d\n", in.max_work_group_count[0], in.max_work_group_count[1],
+           in.max_work_group_count[2]);
+    printf("max work group size   %d x %d x %d (%d invocations)\n", in.max_work_group_size[0],
+           in.max_work_group_size[1], in.max_work_group_size[2], in.max_work_group_invocations);
+    printf("max shared memory     %d bytes\n", in.max_shared_memory);
+    printf("context creation      %.3f s\n", in.create_seconds);
+    lu_gpu_context_destroy(ctx);
+    return LU_EXIT_OK;
+}
+
 int lu_cmd_info(int argc, char **argv) {
     const char *path = NULL;
+    bool gpu = false;
+    lu_gpu_device_pref pref = LU_GPU_AUTO;
     for (int i = 1; i < argc; i++) {
         if (lu_cli_is_help(argv[i])) {
             usage();
             return LU_EXIT_OK;
+        } else if (strcmp(argv[i], "--gpu") == 0) {
+            gpu = true;
+        } else if (strcmp(argv[i], "--software") == 0) {
+            pref = LU_GPU_SOFTWARE;
+        } else if (strcmp(argv[i], "--hardware") == 0) {
+            pref = LU_GPU_HARDWARE;
         } else if (argv[i][0] == '-') {
             return lu_cli_usage("info", "unknown option \"%s\"", argv[i]);
         } else if (!path) {
@@ -104,6 +143,9 @@ int lu_cmd_info(int argc, char **argv) {
             return lu_cli_usage("info", "unexpected argument \"%s\"", argv[i]);
         }
     }
+    if (gpu && path) return lu_cli_usage("info", "--gpu takes no FILE");
+    if (gpu) return print_gpu(pref);
+    if (pref != LU_GPU_AUTO) return lu_cli_usage("info", "--software and --hardware go with --gpu");
     if (!path) return lu_cli_usage("info", "missing FILE");
     lu_error err = {0};
     const char *ext = lu_path_ext(path);

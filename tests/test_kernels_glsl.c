@@ -19,7 +19,19 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "float lu_k_density(LU_CTX_PARAM, int m, vec3 p) { return p.x; }\n"
                                 "float lu_k_shadow_depth(LU_CTX_PARAM, int map, int i, int j) { return 1.0; }\n"
                                 "float lu_k_bssrdf_fetch(LU_CTX_PARAM, int b, int i) { return float(b + i); }\n"
-                                "float lu_k_majorant(LU_CTX_PARAM, int m, int bx, int by, int bz) { return 1.0; }\n");
+                                "float lu_k_majorant(LU_CTX_PARAM, int m, int bx, int by, int bz) { return 1.0; }\n"
+                                "#include \"kernels/lu_medium.h\"\n"
+                                "#include \"kernels/lu_optics.h\"\n"
+                                "#include \"kernels/lu_lightview.h\"\n"
+                                "int lu_k_medium_count(LU_CTX_PARAM) { return 1; }\n"
+                                "lu_k_medium lu_k_medium_get(LU_CTX_PARAM, int m) { lu_k_medium k; k.constant = 1; return k; }\n"
+                                "int lu_k_light_count(LU_CTX_PARAM) { return 1; }\n"
+                                "lu_k_light lu_k_light_get(LU_CTX_PARAM, int l) { lu_k_light k; k.type = 0; return k; }\n"
+                                "int lu_k_rm_view_first(LU_CTX_PARAM, int l) { return 0; }\n"
+                                "int lu_k_rm_view_count(LU_CTX_PARAM, int l) { return 0; }\n"
+                                "lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v) { lu_k_lightview w; w.ortho = 1; return w; }\n"
+                                "float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) { return float(end); }\n"
+                                "float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return -1.0; }\n");
     int count = 0;
     DIR *dir = opendir(LU_SOURCE_DIR "/src/kernels");
     CHECK(dir != NULL);

@@ -286,12 +286,7 @@ LU_FN float lu_k_bssrdf_shadow(LU_CTX_PARAM, int l, vec3 x, vec3 n) {
     lu_k_lightview v0 = lu_k_bssrdf_view(LU_CTX, first);
     int face = count == 6 ? lu_k_cube_face(lu_v3_sub(x, v0.origin)) : 0;
     lu_k_lightview vw = face == 0 ? v0 : lu_k_bssrdf_view(LU_CTX, first + face);
-    float depth = vw.ortho != 0 ? 1.0f : lu_v3_len(lu_v3_sub(x, vw.origin));
-    float texel = 2.0f * lu_max(vw.extent_u, vw.extent_v) * depth / lu_float(res);
-    vec3 xo = lu_v3_madd(x, n, 1.5f * texel);
-    vec3 uvd = lu_k_lightview_project(vw, xo);
-    if (!lu_k_lightview_inside(uvd)) return 1.0f;
-    return lu_k_shadow_visibility(LU_CTX, first + face, res, uvd, 2.0f * texel);
+    return lu_k_shadow_lookup(LU_CTX, vw, first + face, res, x, n);
 }
 
 /* Radiance of environment map e in direction d (bilinear, wrapping in u),

@@ -34,4 +34,16 @@ LU_FN float lu_k_shadow_visibility(LU_CTX_PARAM, int map, int res, vec3 uvd, flo
     return vis;
 }
 
+/* Visibility of x in view vw (map index `map`, res x res): offset along n
+ * (zero for points in a medium) by 1.5 texel footprints, PCF with a depth
+ * bias of 2 footprints, so lit surfaces do not shadow themselves. Points
+ * outside the view are lit. */
+LU_FN float lu_k_shadow_lookup(LU_CTX_PARAM, lu_k_lightview vw, int map, int res, vec3 x, vec3 n) {
+    float depth = vw.ortho != 0 ? 1.0f : lu_v3_len(lu_v3_sub(x, vw.origin));
+    float texel = 2.0f * lu_max(vw.extent_u, vw.extent_v) * depth / lu_float(res);
+    vec3 uvd = lu_k_lightview_project(vw, lu_v3_madd(x, n, 1.5f * texel));
+    if (!lu_k_lightview_inside(uvd)) return 1.0f;
+    return lu_k_shadow_visibility(LU_CTX, map, res, uvd, 2.0f * texel);
+}
+
 #endif

@@ -12,6 +12,7 @@ static const lu_method *const k_methods[] = {
     &lu_method_reference,
     &lu_method_bssrdf,
     &lu_method_pathtrace,
+    &lu_method_raymarch,
 };
 
 const lu_method *const *lu_methods(int *count) {

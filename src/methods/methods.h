@@ -9,6 +9,7 @@
 extern const lu_method lu_method_reference;
 extern const lu_method lu_method_bssrdf;
 extern const lu_method lu_method_pathtrace;
+extern const lu_method lu_method_raymarch;
 
 /* The kernel-side light record (cone angles as cosines). */
 static inline lu_k_light lu_light_to_kernel(const lu_light *l) {
@@ -22,6 +23,22 @@ static inline lu_k_light lu_light_to_kernel(const lu_light *l) {
              : l->type == LU_LIGHT_SPOT ? LU_K_LIGHT_SPOT
                                         : LU_K_LIGHT_DIRECTIONAL;
     return k;
+}
+
+/* Normals at a camera-ray hit of `mesh` along d: the interpolated shading
+ * normal n and the geometric normal ng, both turned to face the viewer
+ * (n onto ng's side). */
+static inline void lu_hit_normals(const lu_mesh *mesh, const lu_hit *hit, lu_vec3 d, lu_vec3 *n_out, lu_vec3 *ng_out) {
+    const uint32_t *tri = &mesh->indices[3u * hit->prim_id];
+    float w0 = 1.0f - hit->u - hit->v;
+    lu_vec3 n = lu_v3_add(lu_v3_add(lu_v3_scale(mesh->normals[tri[0]], w0), lu_v3_scale(mesh->normals[tri[1]], hit->u)),
+                          lu_v3_scale(mesh->normals[tri[2]], hit->v));
+    n = lu_v3_norm(n);
+    lu_vec3 ng = hit->ng;
+    if (lu_v3_dot(ng, d) > 0.0f) ng = lu_v3_neg(ng);
+    if (lu_v3_dot(n, ng) < 0.0f) n = lu_v3_neg(n);
+    *n_out = n;
+    *ng_out = ng;
 }
 
 /* Bilinear lookup of an equirectangular radiance map (u wraps, v clamps),

@@ -510,14 +510,8 @@ static lu_vec3 trace(ref_state *st, thread_scratch *ts, lu_vec3 o, lu_vec3 d, fl
     if (has_hit) {
         int obj = st->opaque_object[hit.mesh_id];
         const lu_object *ob = &s->objects[obj];
-        const uint32_t *tri = &ob->mesh.indices[3u * hit.prim_id];
-        float w0 = 1.0f - hit.u - hit.v;
-        lu_vec3 n = lu_v3_add(lu_v3_add(lu_v3_scale(ob->mesh.normals[tri[0]], w0), lu_v3_scale(ob->mesh.normals[tri[1]], hit.u)),
-                              lu_v3_scale(ob->mesh.normals[tri[2]], hit.v));
-        n = lu_v3_norm(n);
-        lu_vec3 ng = hit.ng;
-        if (lu_v3_dot(ng, d) > 0.0f) ng = lu_v3_neg(ng);
-        if (lu_v3_dot(n, ng) < 0.0f) n = lu_v3_neg(n);
+        lu_vec3 n, ng;
+        lu_hit_normals(&ob->mesh, &hit, d, &n, &ng);
         lu_vec3 x = lu_v3_madd(lu_v3_madd(o, d, hit.t), ng, st->eps);
         end_radiance = surface_radiance(st, ts, x, n, lu_v3_neg(d), &ob->material, phi0);
     } else {

@@ -1,0 +1,117 @@
+/* lu_scene_gpu.glsl — the shared GPU scene (methods/gpu_scene.h uploads it):
+ * camera, media records and density grids, lights, at the fixed bindings of
+ * lu_scene_layout.h. Defines the backend hook
+ *   float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index)
+ * so kernels that march media (lu_march.h, ...) compile unchanged; include
+ * this before them.
+ *
+ * Buffer contents (vec4 each; counts and sizes are small integers stored as
+ * floats, exact):
+ *   header[0] = camera position, w = image width
+ *   header[1] = camera right (scaled, lu_k_camera), w = image height
+ *   header[2] = camera up (scaled), w = medium count
+ *   header[3] = camera forward, w = light count (environment lights excluded)
+ *   media[9 m + 0..2] = world->index rows (xyz linear, w translation)
+ *   media[9 m + 3] = index support lo, w = max_pieces
+ *   media[9 m + 4] = index support hi, w = density scale (constant media: the density)
+ *   media[9 m + 5] = sigma_a, w = phase g
+ *   media[9 m + 6] = sigma_s, w = 1 for a constant medium, 0 for a grid
+ *   media[9 m + 7] = world bounds lo, w = 1 when bounded by a mesh
+ *   media[9 m + 8] = world bounds hi, w = eta
+ *   lights[3 l + 0] = position, w = type (LU_K_LIGHT_*)
+ *   lights[3 l + 1] = direction, w = cos_inner
+ *   lights[3 l + 2] = intensity, w = cos_outer */
+#ifndef LU_SCENE_GPU_GLSL
+#define LU_SCENE_GPU_GLSL
+
+#include "lu_kernel.h"
+#include "lu_scene_layout.h"
+#include "lu_grid_sample.glsl"
+#include "lu_camera.h"
+#include "lu_optics.h"
+#include "lu_medium.h"
+
+layout(std430, binding = LU_SCENE_BINDING_HEADER) readonly buffer LuSceneHeader { vec4 lu_scene_header[]; };
+layout(std430, binding = LU_SCENE_BINDING_MEDIA) readonly buffer LuSceneMedia { vec4 lu_scene_media[]; };
+layout(std430, binding = LU_SCENE_BINDING_LIGHTS) readonly buffer LuSceneLights { vec4 lu_scene_lights[]; };
+layout(binding = LU_SCENE_UNIT_GRID0) uniform sampler3D lu_scene_grid[LU_SCENE_MAX_MEDIA];
+
+int lu_scene_width() { return int(lu_scene_header[0].w); }
+int lu_scene_height() { return int(lu_scene_header[1].w); }
+int lu_scene_medium_count() { return int(lu_scene_header[2].w); }
+int lu_scene_light_count() { return int(lu_scene_header[3].w); }
+vec3 lu_scene_camera_position() { return lu_scene_header[0].xyz; }
+
+lu_k_camera lu_scene_camera() {
+    lu_k_camera k;
+    k.right = lu_scene_header[1].xyz;
+    k.up = lu_scene_header[2].xyz;
+    k.forward = lu_scene_header[3].xyz;
+    k.inv_width = 1.0f / float(lu_scene_width());
+    k.inv_height = 1.0f / float(lu_scene_height());
+    return k;
+}
+
+lu_k_light lu_scene_light(int l) {
+    vec4 a = lu_scene_lights[LU_SCENE_LIGHT_VEC4 * l], b = lu_scene_lights[LU_SCENE_LIGHT_VEC4 * l + 1],
+         c = lu_scene_lights[LU_SCENE_LIGHT_VEC4 * l + 2];
+    lu_k_light k;
+    k.position = a.xyz;
+    k.type = int(a.w);
+    k.direction = b.xyz;
+    k.cos_inner = b.w;
+    k.intensity = c.xyz;
+    k.cos_outer = c.w;
+    return k;
+}
+
+lu_k_medium lu_scene_medium(int m) {
+    int o = LU_SCENE_MEDIUM_VEC4 * m;
+    lu_k_medium k;
+    k.w2i_x = lu_scene_media[o].xyz;
+    k.w2i_y = lu_scene_media[o + 1].xyz;
+    k.w2i_z = lu_scene_media[o + 2].xyz;
+    k.w2i_t = vec3(lu_scene_media[o].w, lu_scene_media[o + 1].w, lu_scene_media[o + 2].w);
+    k.support_lo = lu_scene_media[o + 3].xyz;
+    k.max_pieces = int(lu_scene_media[o + 3].w);
+    k.support_hi = lu_scene_media[o + 4].xyz;
+    k.density_scale = lu_scene_media[o + 4].w;
+    k.sigma_a = lu_scene_media[o + 5].xyz;
+    k.g = lu_scene_media[o + 5].w;
+    k.sigma_s = lu_scene_media[o + 6].xyz;
+    k.constant = int(lu_scene_media[o + 6].w);
+    k.bounds_lo = lu_scene_media[o + 7].xyz;
+    k.bounded = int(lu_scene_media[o + 7].w);
+    k.bounds_hi = lu_scene_media[o + 8].xyz;
+    k.eta = lu_scene_media[o + 8].w;
+    return k;
+}
+
+/* The generic scene hooks of kernels that loop over media and lights. */
+int lu_k_medium_count(LU_CTX_PARAM) { return lu_scene_medium_count(); }
+lu_k_medium lu_k_medium_get(LU_CTX_PARAM, int m) { return lu_scene_medium(m); }
+int lu_k_light_count(LU_CTX_PARAM) { return lu_scene_light_count(); }
+lu_k_light lu_k_light_get(LU_CTX_PARAM, int l) { return lu_scene_light(l); }
+
+/* Trilinear density at an index-space position: lu_grid_sample's convention
+ * (zero outside [0, n-1]) through the zero-border GL_LINEAR texture. The
+ * sampler index is a literal in each branch, so no dynamically uniform
+ * indexing rule applies. */
+float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index) {
+    vec4 s = lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + 4];
+    if (lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + 6].w != 0.0f) return s.w;
+    float v = 0.0f;
+    switch (medium) {
+    case 0: v = lu_grid_sample_tex(lu_scene_grid[0], p_index); break;
+    case 1: v = lu_grid_sample_tex(lu_scene_grid[1], p_index); break;
+    case 2: v = lu_grid_sample_tex(lu_scene_grid[2], p_index); break;
+    case 3: v = lu_grid_sample_tex(lu_scene_grid[3], p_index); break;
+    case 4: v = lu_grid_sample_tex(lu_scene_grid[4], p_index); break;
+    case 5: v = lu_grid_sample_tex(lu_scene_grid[5], p_index); break;
+    case 6: v = lu_grid_sample_tex(lu_scene_grid[6], p_index); break;
+    default: v = lu_grid_sample_tex(lu_scene_grid[7], p_index); break;
+    }
+    return v * s.w;
+}
+
+#endif

@@ -1,0 +1,41 @@
+/* Internal: what one raymarch frame hands to a backend (CPU loop or GPU
+ * pass). The CPU builds it (Embree hits, spans, shadow maps) so both
+ * backends read identical inputs; the per-pixel math is kernels/lu_raymarch.h. */
+#ifndef LU_METHODS_RAYMARCH_H
+#define LU_METHODS_RAYMARCH_H
+
+#include <lucent/lucent.h>
+
+#include "kernels/lu_camera.h"
+#include "kernels/lu_lightview.h"
+#include "kernels/lu_medium.h"
+#include "kernels/lu_optics.h"
+
+/* Packed light view: origin + ortho, axis_u + extent_u, axis_v + extent_v,
+ * axis_w + depth_far (16 floats, std430 vec4[4]). */
+#define LU_RM_VIEW_FLOATS 16
+
+typedef struct lu_raymarch_frame {
+    int width, height;
+    /* lu_k_rm_params fields */
+    lu_vec3 background;
+    float step, eps;
+    int jitter, map_res;
+    int medium_count, light_count;   /* light_count: non-environment lights */
+    const float *hits;               /* width*height*LU_K_RM_HIT_FLOATS */
+    const float *spans;              /* width*height*medium_count*2 */
+    int view_count;
+    const float *views;              /* view_count*LU_RM_VIEW_FLOATS */
+    const int *view_table;           /* light_count*2: first view, view count */
+    const float *shadow;             /* view_count*map_res*map_res depths */
+    unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
+} lu_raymarch_frame;
+
+typedef struct lu_raymarch_gpu lu_raymarch_gpu;
+
+lu_result lu_raymarch_gpu_create(const lu_scene *scene, lu_raymarch_gpu **out, lu_error *err);
+lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, const lu_raymarch_frame *f, lu_image *out,
+                                 lu_error *err);
+void lu_raymarch_gpu_destroy(lu_raymarch_gpu *g);
+
+#endif
