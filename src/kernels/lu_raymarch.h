@@ -126,13 +126,61 @@ LU_FN bool lu_k_rm_medium_range(LU_CTX_PARAM, lu_k_medium md, int m, int pixel, 
     return lu_k_box_clip(md.bounds_lo, md.bounds_hi, o, d, lo, hi, t0, t1);
 }
 
+/* In-scattered radiance per unit length at x towards -d (before the
+ * step's extinction): sum over media and lights of sigma_s D phase E T V,
+ * with the exact optical depth to each light. dens[m]: medium m's density
+ * at x. A method that precomputes the source term (gradient) defines
+ * LU_K_RM_INSCATTER to its own lookup before including this file; the march
+ * below stays the one written here. */
+LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float dens[LU_K_RM_MAX_MEDIA], int nm) {
+    vec3 S = lu_v3s(0.0f);
+    int nl = lu_k_light_count(LU_CTX);
+    for (int l = 0; l < nl; l++) {
+        lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
+        if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+        float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), map_res);
+        if (vis <= 0.0f) continue;
+        vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist)), vis);
+        float cos_t = lu_v3_dot(d, ls.wl);
+        for (int m = 0; m < nm; m++) {
+            if (dens[m] <= 0.0f) continue;
+            lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+            S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(md.sigma_s, E), dens[m] * lu_k_phase_hg(cos_t, md.g)));
+        }
+    }
+    return S;
+}
+#ifndef LU_K_RM_INSCATTER
+#define LU_K_RM_INSCATTER lu_k_rm_inscatter_exact
+#endif
+
+/* What the camera ray o + t d ends on: the background, or the opaque hit's
+ * Blinn-Phong radiance lit through the media (exact transmittance) and the
+ * shadow maps. */
+LU_FN vec3 lu_k_rm_end(LU_CTX_PARAM, lu_k_rm_params P, lu_k_rm_hit hit, vec3 o, vec3 d) {
+    if (hit.t < 0.0f) return P.background;
+    vec3 end = lu_v3s(0.0f);
+    vec3 x = lu_v3_madd(lu_v3_madd(o, d, hit.t), hit.ng, P.eps);
+    vec3 wo = lu_v3_neg(d);
+    int nl = lu_k_light_count(LU_CTX);
+    for (int l = 0; l < nl; l++) {
+        lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
+        vec3 f = lu_k_blinn_phong(hit.albedo, hit.specular, hit.shininess, hit.n, wo, ls.wl);
+        if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+        float vis = lu_k_rm_visibility(LU_CTX, l, x, hit.n, P.map_res);
+        if (vis <= 0.0f) continue;
+        vec3 tr = lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist);
+        end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));
+    }
+    return end;
+}
+
 /* Radiance along the camera ray o + t d of `pixel`; u in [0, 1) is where
  * in each step the sample sits (0.5: midpoint). */
 LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, float u) {
     lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
     float t_end = hit.t >= 0.0f ? hit.t : LU_K_FAR;
     int nm = lu_min(lu_k_medium_count(LU_CTX), LU_K_RM_MAX_MEDIA);
-    int nl = lu_k_light_count(LU_CTX);
     float ra[LU_K_RM_MAX_MEDIA];
     float rb[LU_K_RM_MAX_MEDIA];
     float t0 = LU_K_FAR, t1 = 0.0f;
@@ -171,21 +219,7 @@ LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, v
             }
             if (lu_v3_maxc(sig_t) <= 0.0f) continue;
             vec3 S = lu_v3s(0.0f);
-            if (scatters) {
-                for (int l = 0; l < nl; l++) {
-                    lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
-                    if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-                    float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), P.map_res);
-                    if (vis <= 0.0f) continue;
-                    vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist)), vis);
-                    float cos_t = lu_v3_dot(d, ls.wl);
-                    for (int m = 0; m < nm; m++) {
-                        if (dens[m] <= 0.0f) continue;
-                        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
-                        S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(md.sigma_s, E), dens[m] * lu_k_phase_hg(cos_t, md.g)));
-                    }
-                }
-            }
+            if (scatters) S = LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, dens, nm);
             vec3 tr = lu_v3_exp(lu_v3_scale(sig_t, -h));
             /* integral of exp(-sigma s) over [0, h]: (1 - tr) / sigma, -> h as sigma -> 0 */
             vec3 w = lu_v3(sig_t.x > 1e-6f ? (1.0f - tr.x) / sig_t.x : h, sig_t.y > 1e-6f ? (1.0f - tr.y) / sig_t.y : h,
@@ -194,22 +228,7 @@ LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, v
             T = lu_v3_mul(T, tr);
         }
     }
-    vec3 end = P.background;
-    if (hit.t >= 0.0f) {
-        end = lu_v3s(0.0f);
-        vec3 x = lu_v3_madd(lu_v3_madd(o, d, hit.t), hit.ng, P.eps);
-        vec3 wo = lu_v3_neg(d);
-        for (int l = 0; l < nl; l++) {
-            lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
-            vec3 f = lu_k_blinn_phong(hit.albedo, hit.specular, hit.shininess, hit.n, wo, ls.wl);
-            if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-            float vis = lu_k_rm_visibility(LU_CTX, l, x, hit.n, P.map_res);
-            if (vis <= 0.0f) continue;
-            vec3 tr = lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist);
-            end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));
-        }
-    }
-    return lu_v3_add(L, lu_v3_mul(T, end));
+    return lu_v3_add(L, lu_v3_mul(T, lu_k_rm_end(LU_CTX, P, hit, o, d)));
 }
 
 /* Per-pixel jitter in [0, 1) (integer hash), or 0.5 without jitter. */

@@ -1,0 +1,207 @@
+/* Per-frame CPU inputs of camera-ray march kernels (see march_inputs.h):
+ * Embree hits and bounded-media spans per pixel, light views and shadow
+ * maps per light. Moved out of raymarch.c so every march method reads the
+ * same buffers. */
+#include "methods/march_inputs.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "methods/lightview.h"
+#include "methods/methods.h"
+
+lu_result lu_march_inputs_init(lu_march_inputs *mi, const lu_scene *scene, int shadow_res, const char *who,
+                               lu_error *err) {
+    memset(mi, 0, sizeof *mi);
+    mi->who = who;
+    mi->res = shadow_res;
+    lu_result r = LU_OK;
+    int opaque_count = 0;
+    for (int i = 0; i < scene->object_count; i++) opaque_count += scene->objects[i].material.type == LU_MATERIAL_DIFFUSE;
+    if (opaque_count) {
+        mi->opaque_object = calloc((size_t)opaque_count, sizeof *mi->opaque_object);
+        if (!mi->opaque_object) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", who);
+        r = lu_accel_create(&mi->opaque, err);
+        for (int i = 0; i < scene->object_count && r == LU_OK; i++) {
+            if (scene->objects[i].material.type != LU_MATERIAL_DIFFUSE) continue;
+            uint32_t id;
+            r = lu_accel_add_mesh(mi->opaque, &scene->objects[i].mesh, &id, err);
+            if (r == LU_OK) mi->opaque_object[id] = i;
+        }
+        if (r == LU_OK) r = lu_accel_commit(mi->opaque, err);
+    }
+    mi->medium_count = scene->medium_count;
+    mi->boundary = calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *mi->boundary);
+    if (!mi->boundary && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", who);
+    for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
+        if (!scene->media[m].has_boundary) continue;
+        uint32_t id;
+        r = lu_accel_create(&mi->boundary[m], err);
+        if (r == LU_OK) r = lu_accel_add_mesh(mi->boundary[m], &scene->media[m].boundary, &id, err);
+        if (r == LU_OK) r = lu_accel_commit(mi->boundary[m], err);
+    }
+    return r;
+}
+
+void lu_march_inputs_free(lu_march_inputs *mi) {
+    if (mi->opaque) lu_accel_destroy(mi->opaque);
+    for (int m = 0; m < mi->medium_count && mi->boundary; m++)
+        if (mi->boundary[m]) lu_accel_destroy(mi->boundary[m]);
+    free(mi->boundary);
+    free(mi->opaque_object);
+    free(mi->hits);
+    free(mi->spans);
+    free(mi->views);
+    free(mi->views_packed);
+    free(mi->view_table);
+    free(mi->shadow);
+    free(mi->maps_lights);
+    memset(mi, 0, sizeof *mi);
+}
+
+/* ---- per-pixel hits and spans (Embree) ---- */
+
+static void hit_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    (void)thread;
+    lu_march_inputs *mi = ctx;
+    const lu_scene *s = mi->scene;
+    const lu_camera *c = &s->camera;
+    int nm = mi->medium_count;
+    for (int64_t y = begin; y < end; y++) {
+        for (int x = 0; x < c->width; x++) {
+            size_t px = (size_t)y * c->width + x;
+            lu_vec3 o = c->position, d = lu_k_camera_dir(mi->cam, (float)x + 0.5f, (float)y + 0.5f);
+            float *h = mi->hits + px * LU_MARCH_HIT_FLOATS;
+            memset(h, 0, LU_MARCH_HIT_FLOATS * sizeof *h);
+            h[3] = -1.0f;
+            lu_hit hit;
+            float t_end = LU_K_FAR;
+            if (mi->opaque && lu_accel_closest(mi->opaque, o, d, 0.0f, LU_K_FAR, &hit)) {
+                const lu_object *ob = &s->objects[mi->opaque_object[hit.mesh_id]];
+                lu_vec3 n, ng;
+                lu_hit_normals(&ob->mesh, &hit, d, &n, &ng);
+                const lu_material *mt = &ob->material;
+                memcpy(h, &n, 12);
+                h[3] = hit.t;
+                memcpy(h + 4, &ng, 12);
+                memcpy(h + 8, &mt->albedo, 12);
+                h[11] = mt->shininess;
+                memcpy(h + 12, &mt->specular, 12);
+                t_end = hit.t;
+            }
+            float *sp = mi->spans + px * (size_t)nm * 2;
+            for (int m = 0; m < nm; m++) {
+                sp[2 * m] = 0.0f;
+                sp[2 * m + 1] = LU_K_FAR;
+                if (!mi->boundary[m]) continue;
+                /* The first span inside the boundary along the ray (all of it
+                 * for a convex boundary). */
+                lu_hit hs[2];
+                int n = lu_accel_all_hits(mi->boundary[m], o, d, 0.0f, t_end, hs, 2);
+                bool inside = lu_accel_inside(mi->boundary[m], o);
+                if (inside) {
+                    sp[2 * m + 1] = n > 0 ? hs[0].t : LU_K_FAR;
+                } else if (n > 0) {
+                    sp[2 * m] = hs[0].t;
+                    sp[2 * m + 1] = n > 1 ? hs[1].t : LU_K_FAR;
+                } else {
+                    sp[2 * m + 1] = 0.0f;
+                }
+            }
+        }
+    }
+}
+
+static lu_result build_hits(lu_march_inputs *mi, const lu_scene *scene, lu_error *err) {
+    const lu_camera *c = &scene->camera;
+    size_t pixels = (size_t)c->width * c->height;
+    if (pixels > mi->pixels_cap) {
+        free(mi->hits);
+        free(mi->spans);
+        mi->hits = malloc(pixels * LU_MARCH_HIT_FLOATS * sizeof(float));
+        mi->spans = malloc(pixels * (size_t)(mi->medium_count ? mi->medium_count : 1) * 2 * sizeof(float));
+        mi->pixels_cap = mi->hits && mi->spans ? pixels : 0;
+        mi->hits_valid = false;
+        if (!mi->hits || !mi->spans)
+            return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for %zu pixels", mi->who, pixels);
+    }
+    if (mi->hits_valid && memcmp(&mi->hits_cam, c, sizeof *c) == 0) return LU_OK;
+    mi->scene = scene;
+    mi->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
+    lu_parallel_for(c->height, 4, hit_rows, mi, NULL);
+    mi->hits_cam = *c;
+    mi->hits_valid = true;
+    return LU_OK;
+}
+
+/* ---- shadow maps of the opaque objects, per light view ---- */
+
+static lu_result build_maps(lu_march_inputs *mi, const lu_scene *scene, const lu_k_light *kl, int nl, lu_error *err) {
+    if (mi->maps_valid && nl == mi->maps_nl && memcmp(mi->maps_lights, kl, (size_t)nl * sizeof *kl) == 0)
+        return LU_OK;
+    size_t nlc = nl ? (size_t)nl : 1u;
+    free(mi->views);
+    free(mi->views_packed);
+    free(mi->view_table);
+    free(mi->shadow);
+    free(mi->maps_lights);
+    mi->views = calloc(nlc * 6, sizeof *mi->views);
+    mi->views_packed = calloc(nlc * 6 * LU_MARCH_VIEW_FLOATS, sizeof(float));
+    mi->view_table = calloc(nlc * 2, sizeof(int));
+    mi->maps_lights = malloc(nlc * sizeof *mi->maps_lights);
+    mi->shadow = NULL;
+    mi->view_count = 0;
+    mi->maps_valid = false;
+    if (!mi->views || !mi->views_packed || !mi->view_table || !mi->maps_lights)
+        return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", mi->who);
+    /* Without opaque objects nothing casts: no views, visibility 1. */
+    if (mi->opaque) {
+        lu_aabb region = lu_scene_bounds(scene);
+        int k = 0;
+        for (int l = 0; l < scene->light_count; l++) {
+            if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) continue;
+            lu_lightviews lv;
+            lu_lightviews_for_light(&scene->lights[l], region, &lv);
+            mi->view_table[2 * k] = mi->view_count;
+            mi->view_table[2 * k + 1] = lv.count;
+            for (int v = 0; v < lv.count; v++) {
+                const lu_k_lightview *w = &lv.view[v];
+                float *p = mi->views_packed + (size_t)mi->view_count * LU_MARCH_VIEW_FLOATS;
+                memcpy(p, &w->origin, 12);
+                p[3] = (float)w->ortho;
+                memcpy(p + 4, &w->axis_u, 12);
+                p[7] = w->extent_u;
+                memcpy(p + 8, &w->axis_v, 12);
+                p[11] = w->extent_v;
+                memcpy(p + 12, &w->axis_w, 12);
+                p[15] = w->depth_far;
+                mi->views[mi->view_count++] = *w;
+            }
+            k++;
+        }
+        size_t texels = (size_t)mi->res * mi->res;
+        mi->shadow = malloc((mi->view_count ? (size_t)mi->view_count : 1u) * texels * sizeof(float));
+        if (!mi->shadow) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for shadow maps", mi->who);
+        for (int v = 0; v < mi->view_count; v++) {
+            lu_result r = lu_shadow_map_build(mi->opaque, &mi->views[v], mi->res, 1e30f, mi->shadow + v * texels, err);
+            if (r != LU_OK) return r;
+        }
+    } else {
+        mi->shadow = calloc(1, sizeof(float));
+        if (!mi->shadow) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", mi->who);
+    }
+    memcpy(mi->maps_lights, kl, (size_t)nl * sizeof *kl);
+    mi->maps_nl = nl;
+    mi->maps_valid = true;
+    mi->maps_version++;
+    return LU_OK;
+}
+
+lu_result lu_march_inputs_update(lu_march_inputs *mi, const lu_scene *scene, const lu_k_light *kl, int nl,
+                                 lu_error *err) {
+    if (scene->medium_count != mi->medium_count)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "%s: the scene's media changed since prepare", mi->who);
+    lu_result r = build_hits(mi, scene, err);
+    if (r == LU_OK) r = build_maps(mi, scene, kl, nl, err);
+    return r;
+}
