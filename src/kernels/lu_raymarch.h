@@ -21,11 +21,15 @@
  *   lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v);
  *   float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k);   (float k of the pixel's lu_k_rm_hit)
  *   float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end);   (end 0: start t, 1: end t)
+ *   float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k);  (boundary map view * media + m,
+ *       texel (i, j), float k of LU_MARCH_BMAP_FLOATS: methods/march_inputs.h)
  *
- * Simplifications against the reference (stated in docs/gpu.md): shadow rays
- * clip media to their world boxes, not to boundary meshes, and carry no
- * Fresnel factor; boundary reflection and environment lights are not
- * rendered; a bounded medium is present on the camera ray in its first span. */
+ * Shadow rays through a bounded medium use the light's boundary map: the
+ * segment of the light ray inside the boundary and the Fresnel transmittance
+ * at its crossings, as the reference (exact for convex boundaries, to the
+ * map's resolution). Simplifications against the reference (docs/gpu.md):
+ * boundary reflection and environment lights are not rendered; a bounded
+ * medium is present on the camera ray in its first span. */
 #ifndef LU_RAYMARCH_H
 #define LU_RAYMARCH_H
 
@@ -58,6 +62,8 @@ struct lu_k_rm_hit {
 };
 LU_TYPEDEF(lu_k_rm_hit)
 #define LU_K_RM_HIT_FLOATS 16
+/* Floats per boundary-map texel (LU_MARCH_BMAP_FLOATS, methods/march_inputs.h). */
+#define LU_K_RM_BMAP_FLOATS 4
 
 LU_FN vec3 lu_k_rm_hit_fetch3(LU_CTX_PARAM, int pixel, int k) {
     return lu_v3(lu_k_rm_hit_fetch(LU_CTX, pixel, k), lu_k_rm_hit_fetch(LU_CTX, pixel, k + 1),
@@ -118,6 +124,51 @@ LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     return lu_k_shadow_lookup(LU_CTX, vw, first + face, res, x, n);
 }
 
+/* Transmittance from x towards light l (unit wl, distance dist): the exact
+ * optical depth of every medium, unbounded ones clipped to their box,
+ * bounded ones to the segment of the light's boundary map (the texel x
+ * projects to) times F_t at each boundary crossing between x and the light.
+ * Without light views (no opaque objects, no bounded media) this is
+ * lu_k_rm_transmittance. */
+LU_FN vec3 lu_k_rm_light_transmittance(LU_CTX_PARAM, int l, vec3 x, vec3 wl, float dist, int res) {
+    int count = lu_k_rm_view_count(LU_CTX, l);
+    if (count <= 0) return lu_k_rm_transmittance(LU_CTX, x, wl, dist);
+    int first = lu_k_rm_view_first(LU_CTX, l);
+    lu_k_lightview v0 = lu_k_rm_view(LU_CTX, first);
+    int face = count == 6 ? lu_k_cube_face(lu_v3_sub(x, v0.origin)) : 0;
+    lu_k_lightview vw = face == 0 ? v0 : lu_k_rm_view(LU_CTX, first + face);
+    vec3 uvd = lu_k_lightview_project(vw, x);
+    bool in_view = lu_k_lightview_inside(uvd);
+    int ti = lu_int(lu_clamp(uvd.x * lu_float(res), 0.0f, lu_float(res - 1)));
+    int tj = lu_int(lu_clamp(uvd.y * lu_float(res), 0.0f, lu_float(res - 1)));
+    vec3 tau = lu_v3s(0.0f);
+    float ft = 1.0f;
+    int nm = lu_k_medium_count(LU_CTX);
+    for (int m = 0; m < nm; m++) {
+        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+        float lo = 0.0f, hi = dist;
+        if (md.bounded != 0 && in_view) {
+            int map = (first + face) * nm + m;
+            float da = lu_k_rm_bmap(LU_CTX, map, ti, tj, 0), db = lu_k_rm_bmap(LU_CTX, map, ti, tj, 1);
+            if (!(db > da)) continue;
+            /* depth along the light ray falls by s as the shadow ray advances s towards the light */
+            float dx = uvd.z, dl = uvd.z - dist;
+            if (da > dl && da < dx) ft *= lu_k_rm_bmap(LU_CTX, map, ti, tj, 2);
+            if (db > dl && db < dx) ft *= lu_k_rm_bmap(LU_CTX, map, ti, tj, 3);
+            lo = dx - lu_min(db, dx);
+            hi = dx - lu_max(da, dl);
+            if (!(hi > lo)) continue;
+        }
+        float a = 0.0f, b = 0.0f;
+        if (!lu_k_box_clip(md.bounds_lo, md.bounds_hi, x, wl, lo, hi, LU_REF(a), LU_REF(b))) continue;
+        float od = md.constant != 0 ? md.density_scale * (b - a)
+                                    : lu_k_optical_depth(LU_CTX, m, lu_k_medium_point(md, x), lu_k_medium_vector(md, wl), a, b,
+                                                         md.max_pieces);
+        tau = lu_v3_madd(tau, lu_k_medium_sigma_t(md), od);
+    }
+    return lu_v3_scale(lu_v3_exp(lu_v3_neg(tau)), ft);
+}
+
 /* Range [t0, t1] of medium m on the camera ray of `pixel`, clipped to [0, t_end]. */
 LU_FN bool lu_k_rm_medium_range(LU_CTX_PARAM, lu_k_medium md, int m, int pixel, vec3 o, vec3 d, float t_end,
                                 LU_OUT(float) t0, LU_OUT(float) t1) {
@@ -140,7 +191,7 @@ LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, fl
         if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
         float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), map_res);
         if (vis <= 0.0f) continue;
-        vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist)), vis);
+        vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, lu_k_rm_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist, map_res)), vis);
         float cos_t = lu_v3_dot(d, ls.wl);
         for (int m = 0; m < nm; m++) {
             if (dens[m] <= 0.0f) continue;
@@ -169,7 +220,7 @@ LU_FN vec3 lu_k_rm_end(LU_CTX_PARAM, lu_k_rm_params P, lu_k_rm_hit hit, vec3 o, 
         if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
         float vis = lu_k_rm_visibility(LU_CTX, l, x, hit.n, P.map_res);
         if (vis <= 0.0f) continue;
-        vec3 tr = lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist);
+        vec3 tr = lu_k_rm_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist, P.map_res);
         end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));
     }
     return end;

@@ -56,6 +56,9 @@ static inline lu_k_lightview lu_k_rm_view(const struct lu_k_ctx *c, int v) { ret
 static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k) {
     return c->in->hits[(size_t)pixel * LU_MARCH_HIT_FLOATS + k];
 }
+static inline float lu_k_rm_bmap(const struct lu_k_ctx *c, int map, int i, int j, int k) {
+    return c->in->bmaps[(((size_t)map * c->in->res + j) * c->in->res + i) * LU_MARCH_BMAP_FLOATS + k];
+}
 static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) {
     return c->in->spans[((size_t)pixel * c->nm + m) * 2 + end];
 }

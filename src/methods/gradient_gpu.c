@@ -10,7 +10,7 @@
 #include "methods/gpu_scene.h"
 #include "methods/gradient.h"
 
-enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SAMPLES, B_CELLS, B_ITEMS, B_FIELD, B_PARAMS, B_ET, B_COUNT };
+enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SAMPLES, B_CELLS, B_ITEMS, B_FIELD, B_PARAMS, B_ET, B_BMAPS, B_COUNT };
 enum { PASS_EVAL = 0, PASS_FIELD = 1, PASS_MARCH = 2 };
 
 struct lu_gradient_gpu {
@@ -66,6 +66,7 @@ static lu_result bind_common(lu_gradient_gpu *g, const lu_scene *scene, const lu
         /* Shadow maps change only with the lights. */
         bool same = g->maps_uploaded && g->maps_version == in->maps_version;
         r = put(g, B_SHADOW, same ? NULL : in->shadow, (size_t)in->view_count * texels * sizeof(float), err);
+        if (r == LU_OK) r = put(g, B_BMAPS, same ? NULL : in->bmaps, in->bmap_floats * sizeof(float), err);
         g->maps_uploaded = r == LU_OK;
         g->maps_version = in->maps_version;
     }

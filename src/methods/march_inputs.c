@@ -55,6 +55,7 @@ void lu_march_inputs_free(lu_march_inputs *mi) {
     free(mi->views_packed);
     free(mi->view_table);
     free(mi->shadow);
+    free(mi->bmaps);
     free(mi->maps_lights);
     memset(mi, 0, sizeof *mi);
 }
@@ -134,6 +135,42 @@ static lu_result build_hits(lu_march_inputs *mi, const lu_scene *scene, lu_error
     return LU_OK;
 }
 
+/* ---- boundary maps of bounded media, per light view (see march_inputs.h) ---- */
+
+static void bmap_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    (void)thread;
+    lu_march_inputs *mi = ctx;
+    int res = mi->res, nm = mi->medium_count;
+    for (int64_t row = begin; row < end; row++) {
+        int j = (int)(row % res), m = (int)((row / res) % nm), v = (int)(row / ((int64_t)res * nm));
+        float *out = mi->bmaps + (((size_t)v * nm + m) * res + j) * (size_t)res * LU_MARCH_BMAP_FLOATS;
+        const lu_k_lightview *vw = &mi->views[v];
+        const lu_accel *acc = mi->boundary[m];
+        float eta = mi->scene->media[m].eta;
+        /* A light inside the boundary (perspective views start at the light): the segment starts there. */
+        bool light_inside = acc && !vw->ortho && lu_accel_inside(acc, vw->origin);
+        for (int i = 0; i < res; i++) {
+            float *t = out + (size_t)i * LU_MARCH_BMAP_FLOATS;
+            t[0] = 1.0f, t[1] = 0.0f, t[2] = 1.0f, t[3] = 1.0f;
+            if (!acc) continue;
+            lu_k_lightray ray = lu_k_lightview_ray(*vw, ((float)i + 0.5f) / (float)res, ((float)j + 0.5f) / (float)res);
+            lu_hit hs[2];
+            int n = lu_accel_all_hits(acc, ray.origin, ray.dir, 0.0f, LU_K_FAR, hs, 2);
+            /* depth along the texel's ray: t for both view kinds (unit dir; ortho rays start on the view plane) */
+            if (light_inside) {
+                t[0] = 0.0f;
+                t[1] = n > 0 ? hs[0].t : LU_K_FAR;
+                t[3] = n > 0 ? lu_k_fresnel_transmittance(lu_v3_dot(hs[0].ng, ray.dir), eta) : 1.0f;
+            } else if (n > 0) {
+                t[0] = hs[0].t;
+                t[1] = n > 1 ? hs[1].t : LU_K_FAR;
+                t[2] = lu_k_fresnel_transmittance(lu_v3_dot(hs[0].ng, ray.dir), eta);
+                t[3] = n > 1 ? lu_k_fresnel_transmittance(lu_v3_dot(hs[1].ng, ray.dir), eta) : 1.0f;
+            }
+        }
+    }
+}
+
 /* ---- shadow maps of the opaque objects, per light view ---- */
 
 static lu_result build_maps(lu_march_inputs *mi, const lu_scene *scene, const lu_k_light *kl, int nl, lu_error *err) {
@@ -144,7 +181,10 @@ static lu_result build_maps(lu_march_inputs *mi, const lu_scene *scene, const lu
     free(mi->views_packed);
     free(mi->view_table);
     free(mi->shadow);
+    free(mi->bmaps);
     free(mi->maps_lights);
+    mi->bmaps = NULL;
+    mi->bmap_floats = 0;
     mi->views = calloc(nlc * 6, sizeof *mi->views);
     mi->views_packed = calloc(nlc * 6 * LU_MARCH_VIEW_FLOATS, sizeof(float));
     mi->view_table = calloc(nlc * 2, sizeof(int));
@@ -154,8 +194,10 @@ static lu_result build_maps(lu_march_inputs *mi, const lu_scene *scene, const lu
     mi->maps_valid = false;
     if (!mi->views || !mi->views_packed || !mi->view_table || !mi->maps_lights)
         return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", mi->who);
-    /* Without opaque objects nothing casts: no views, visibility 1. */
-    if (mi->opaque) {
+    /* Without opaque objects or bounded media: no views, visibility 1. */
+    bool bounded = false;
+    for (int m = 0; m < mi->medium_count; m++) bounded = bounded || mi->boundary[m];
+    if (mi->opaque || bounded) {
         lu_aabb region = lu_scene_bounds(scene);
         int k = 0;
         for (int l = 0; l < scene->light_count; l++) {
@@ -185,6 +227,13 @@ static lu_result build_maps(lu_march_inputs *mi, const lu_scene *scene, const lu
         for (int v = 0; v < mi->view_count; v++) {
             lu_result r = lu_shadow_map_build(mi->opaque, &mi->views[v], mi->res, 1e30f, mi->shadow + v * texels, err);
             if (r != LU_OK) return r;
+        }
+        if (bounded) {
+            mi->bmap_floats = (size_t)(mi->view_count ? mi->view_count : 1) * mi->medium_count * texels * LU_MARCH_BMAP_FLOATS;
+            mi->bmaps = malloc(mi->bmap_floats * sizeof(float));
+            if (!mi->bmaps) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for boundary maps", mi->who);
+            mi->scene = scene;
+            lu_parallel_for((int64_t)mi->view_count * mi->medium_count * mi->res, 8, bmap_rows, mi, NULL);
         }
     } else {
         mi->shadow = calloc(1, sizeof(float));

@@ -5,7 +5,12 @@
  *     lu_k_rm_hit record (LU_K_RM_HIT_FLOATS floats), and each bounded
  *     medium's first span along the ray (Embree);
  *   - per light, its light views (lightview.h) packed as
- *     LU_MARCH_VIEW_FLOATS floats, and shadow maps of the opaque objects.
+ *     LU_MARCH_VIEW_FLOATS floats, shadow maps of the opaque objects, and,
+ *     when a medium is bounded by a mesh, boundary maps: per view, medium
+ *     and texel, the depths where the texel's light ray enters and leaves
+ *     the boundary and the Fresnel transmittance at both crossings
+ *     (LU_MARCH_BMAP_FLOATS), so shadow rays clip bounded media to their
+ *     boundary (exactly for convex ones) and carry F_t as the reference does.
  * Both are cached: hits while the camera is unchanged, maps while the
  * lights are unchanged (maps_version counts rebuilds, for GPU re-uploads). */
 #ifndef LU_METHODS_MARCH_INPUTS_H
@@ -20,6 +25,10 @@
 /* Packed light view: origin + ortho, axis_u + extent_u, axis_v + extent_v,
  * axis_w + depth_far (16 floats, std430 vec4[4]). */
 #define LU_MARCH_VIEW_FLOATS 16
+/* Floats per texel of a boundary map: depth a, depth b (a < b, the segment
+ * of the light ray inside the boundary; b <= a: none), F_t at a, F_t at b
+ * (1 where the segment ends at the light, not at a crossing). */
+#define LU_MARCH_BMAP_FLOATS 4
 /* Floats per pixel in the hit buffer (lu_k_rm_hit in kernels/lu_raymarch.h). */
 #define LU_MARCH_HIT_FLOATS 16
 
@@ -42,6 +51,8 @@ typedef struct lu_march_inputs {
     float *views_packed;       /* view_count*LU_MARCH_VIEW_FLOATS */
     int *view_table;           /* per kernel light: first view, view count */
     float *shadow;             /* view_count*res*res depths */
+    float *bmaps;              /* view_count*medium_count*res*res*LU_MARCH_BMAP_FLOATS, or NULL (no bounded medium) */
+    size_t bmap_floats;
     int view_count;
     lu_k_light *maps_lights;
     int maps_nl;

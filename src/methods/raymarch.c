@@ -42,6 +42,9 @@ static inline lu_k_lightview lu_k_rm_view(const struct lu_k_ctx *c, int v) { ret
 static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k) {
     return c->f->hits[(size_t)pixel * 16 + k];
 }
+static inline float lu_k_rm_bmap(const struct lu_k_ctx *c, int map, int i, int j, int k) {
+    return c->f->bmaps[(((size_t)map * c->f->map_res + j) * c->f->map_res + i) * LU_MARCH_BMAP_FLOATS + k];
+}
 static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) {
     return c->f->spans[((size_t)pixel * c->nm + m) * 2 + end];
 }
@@ -49,6 +52,7 @@ static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int
 #include "kernels/lu_raymarch.h"
 
 _Static_assert(LU_K_RM_HIT_FLOATS == LU_MARCH_HIT_FLOATS, "hit record size");
+_Static_assert(LU_K_RM_BMAP_FLOATS == LU_MARCH_BMAP_FLOATS, "boundary map texel size");
 
 enum { P_STEPS, P_JITTER, P_SHADOW_RES, P_COUNT };
 
@@ -172,6 +176,8 @@ static lu_result rm_render(void *state, const lu_scene *scene, lu_image *out, lu
     f->views = st->in.views_packed;
     f->view_table = st->in.view_table;
     f->shadow = st->in.shadow;
+    f->bmaps = st->in.bmaps;
+    f->bmap_floats = st->in.bmap_floats;
     f->maps_version = st->in.maps_version;
     if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, f, out, err);
     st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, nl, f, st->in.views};

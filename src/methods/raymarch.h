@@ -28,6 +28,8 @@ typedef struct lu_raymarch_frame {
     const float *views;              /* view_count*LU_RM_VIEW_FLOATS */
     const int *view_table;           /* light_count*2: first view, view count */
     const float *shadow;             /* view_count*map_res*map_res depths */
+    const float *bmaps;              /* boundary maps (march_inputs.h), NULL without bounded media */
+    size_t bmap_floats;
     unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
 } lu_raymarch_frame;
 

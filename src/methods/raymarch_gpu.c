@@ -7,7 +7,7 @@
 #include "methods/gpu_scene.h"
 #include "methods/raymarch.h"
 
-enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_COUNT };
+enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_BMAPS, B_COUNT };
 
 struct lu_raymarch_gpu {
     lu_gpu_context *ctx;
@@ -62,6 +62,7 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
     if (r == LU_OK) {
         bool same = g->uploaded && g->uploaded_version == f->maps_version;
         r = put(g, B_SHADOW, same ? NULL : f->shadow, (size_t)f->view_count * texels * sizeof(float), err);
+        if (r == LU_OK) r = put(g, B_BMAPS, same ? NULL : f->bmaps, f->bmap_floats * sizeof(float), err);
         g->uploaded = r == LU_OK;
         g->uploaded_version = f->maps_version;
     }

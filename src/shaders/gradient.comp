@@ -22,6 +22,7 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 8) readonly buffer Items { int 
 layout(std430, binding = LU_SCENE_BINDING_FREE + 9) buffer Field { float gr_field[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 10) readonly buffer Params { lu_k_gr_params gr_par; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 11) buffer ErrTau { float gr_et[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 12) readonly buffer BMaps { float gr_bmaps[]; };
 
 uniform int u_pass;
 uniform int u_count;
@@ -48,6 +49,9 @@ lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v) {
     return w;
 }
 float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return gr_hits[pixel * 16 + k]; }
+float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k) {
+    return gr_bmaps[((map * gr_par.map_res + j) * gr_par.map_res + i) * 4 + k]; // 4: LU_K_RM_BMAP_FLOATS (defined after these hooks)
+}
 float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) {
     return gr_spans[(pixel * lu_scene_medium_count() + m) * 2 + end];
 }

@@ -13,6 +13,7 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 2) readonly buffer Views { vec4
 layout(std430, binding = LU_SCENE_BINDING_FREE + 3) readonly buffer ViewTable { int rm_view_table[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 4) readonly buffer Shadow { float rm_shadow[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 5) writeonly buffer Out { float rm_out[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 6) readonly buffer BMaps { float rm_bmaps[]; };
 
 uniform int u_map_res;
 uniform float u_step;
@@ -36,6 +37,9 @@ lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v) {
     return w;
 }
 float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return rm_hits[pixel * 16 + k]; }
+float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k) {
+    return rm_bmaps[((map * u_map_res + j) * u_map_res + i) * 4 + k]; // 4: LU_K_RM_BMAP_FLOATS (defined after these hooks)
+}
 float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) {
     return rm_spans[(pixel * lu_scene_medium_count() + m) * 2 + end];
 }

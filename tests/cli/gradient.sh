@@ -23,6 +23,15 @@ done
 # Gradient and pervoxel agree within a few percent (both approximate the same field).
 "$lucent" compare "$tmp/gradient.exr" "$tmp/pervoxel.exr" >"$tmp/c.txt"
 awk '$1 == "rel_l2" { exit !($2 < 0.05) }' "$tmp/c.txt" || { echo "FAIL: gradient vs pervoxel"; cat "$tmp/c.txt"; exit 1; }
+# A bounded medium (boundary maps for the shadow rays) on both backends: the GPU matches the CPU.
+for m in gradient raymarch; do
+  for b in cpu gpu; do
+    "$lucent" render "$src/scenes/layered_cube.json" --method $m --backend $b --size 24x24 -o "$tmp/lc_$b.exr" 2>/dev/null \
+      || { echo "FAIL: $m on $b"; exit 1; }
+  done
+  "$lucent" compare "$tmp/lc_gpu.exr" "$tmp/lc_cpu.exr" >"$tmp/c.txt"
+  awk '$1 == "rel_l2" { exit !($2 < 1e-3) }' "$tmp/c.txt" || { echo "FAIL: $m gpu vs cpu"; cat "$tmp/c.txt"; exit 1; }
+done
 
 expect_fail() {  # expect_fail PATTERN ARGS...: exit 1, one line on stderr naming PATTERN
   local pat=$1
