@@ -75,6 +75,7 @@ static inline float lu_k_gr_sample_fetch(const struct lu_k_ctx *c, int j, int k)
 }
 
 #include "kernels/lu_gradient.h"
+#include "kernels/lu_sampling.h"
 
 _Static_assert(LU_K_RM_HIT_FLOATS == LU_MARCH_HIT_FLOATS, "hit record size");
 _Static_assert(LU_K_RM_MAX_MEDIA == 8, "lu_k_gr_inscatter takes dens[8]");
@@ -291,13 +292,7 @@ static lu_result add_sample(gr_state *st, lu_vec3 x, float R, float wgt, float r
 }
 
 static uint32_t hash3(uint32_t a, uint32_t b, uint32_t c) {
-    uint32_t x = a * 73856093u ^ b * 19349663u ^ c * 83492791u;
-    x ^= x >> 16;
-    x *= 0x7feb352du;
-    x ^= x >> 15;
-    x *= 0x846ca68bu;
-    x ^= x >> 16;
-    return x;
+    return lu_k_hash_u32(a * 73856093u ^ b * 19349663u ^ c * 83492791u);
 }
 
 /* Coverage fill (an extension): the paper assumes the Gaussians' valid

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "methods/gpu_scene.h"
 #include "methods/lightview.h"
 #include "methods/methods.h"
 
@@ -43,6 +44,18 @@ lu_result lu_march_inputs_init(lu_march_inputs *mi, const lu_scene *scene, int s
     return r;
 }
 
+static void free_maps(lu_march_inputs *mi) {
+    free(mi->views);
+    free(mi->views_packed);
+    free(mi->view_table);
+    free(mi->shadow);
+    free(mi->bmaps);
+    free(mi->maps_lights);
+    mi->views = NULL, mi->views_packed = NULL, mi->view_table = NULL, mi->shadow = NULL, mi->bmaps = NULL;
+    mi->maps_lights = NULL;
+    mi->bmap_floats = 0;
+}
+
 void lu_march_inputs_free(lu_march_inputs *mi) {
     if (mi->opaque) lu_accel_destroy(mi->opaque);
     for (int m = 0; m < mi->medium_count && mi->boundary; m++)
@@ -51,12 +64,7 @@ void lu_march_inputs_free(lu_march_inputs *mi) {
     free(mi->opaque_object);
     free(mi->hits);
     free(mi->spans);
-    free(mi->views);
-    free(mi->views_packed);
-    free(mi->view_table);
-    free(mi->shadow);
-    free(mi->bmaps);
-    free(mi->maps_lights);
+    free_maps(mi);
     memset(mi, 0, sizeof *mi);
 }
 
@@ -177,14 +185,7 @@ static lu_result build_maps(lu_march_inputs *mi, const lu_scene *scene, const lu
     if (mi->maps_valid && nl == mi->maps_nl && memcmp(mi->maps_lights, kl, (size_t)nl * sizeof *kl) == 0)
         return LU_OK;
     size_t nlc = nl ? (size_t)nl : 1u;
-    free(mi->views);
-    free(mi->views_packed);
-    free(mi->view_table);
-    free(mi->shadow);
-    free(mi->bmaps);
-    free(mi->maps_lights);
-    mi->bmaps = NULL;
-    mi->bmap_floats = 0;
+    free_maps(mi);
     mi->views = calloc(nlc * 6, sizeof *mi->views);
     mi->views_packed = calloc(nlc * 6 * LU_MARCH_VIEW_FLOATS, sizeof(float));
     mi->view_table = calloc(nlc * 2, sizeof(int));
@@ -253,4 +254,32 @@ lu_result lu_march_inputs_update(lu_march_inputs *mi, const lu_scene *scene, con
     lu_result r = build_hits(mi, scene, err);
     if (r == LU_OK) r = build_maps(mi, scene, kl, nl, err);
     return r;
+}
+
+/* ---- the same on the GPU ---- */
+
+lu_result lu_march_inputs_gpu_put(lu_march_inputs_gpu *g, lu_gpu_context *ctx, const lu_march_inputs *mi,
+                                  const lu_scene *scene, int nl, int first_binding, lu_error *err) {
+    size_t pixels = (size_t)scene->camera.width * scene->camera.height;
+    size_t texels = (size_t)mi->res * mi->res;
+    const void *data[LU_MARCH_GPU_BUFFERS] = {mi->hits, mi->spans, mi->views_packed, mi->view_table, mi->shadow, mi->bmaps};
+    size_t bytes[LU_MARCH_GPU_BUFFERS] = {pixels * LU_MARCH_HIT_FLOATS * sizeof(float),
+                                          pixels * (size_t)mi->medium_count * 2 * sizeof(float),
+                                          (size_t)mi->view_count * LU_MARCH_VIEW_FLOATS * sizeof(float),
+                                          (size_t)nl * 2 * sizeof(int),
+                                          (size_t)mi->view_count * texels * sizeof(float),
+                                          mi->bmap_floats * sizeof(float)};
+    /* Shadow and boundary maps change only with the lights: kept when the CPU kept them. */
+    bool same = g->maps_uploaded && g->maps_version == mi->maps_version;
+    lu_result r = LU_OK;
+    for (int i = 0; i < LU_MARCH_GPU_BUFFERS && r == LU_OK; i++)
+        r = lu_gpu_slot_put(ctx, &g->buf[i], &g->size[i], first_binding + i, same && i >= 4 ? NULL : data[i], bytes[i], err);
+    g->maps_uploaded = r == LU_OK;
+    g->maps_version = mi->maps_version;
+    return r;
+}
+
+void lu_march_inputs_gpu_free(lu_march_inputs_gpu *g) {
+    for (int i = 0; i < LU_MARCH_GPU_BUFFERS; i++) lu_gpu_buffer_destroy(g->buf[i]);
+    memset(g, 0, sizeof *g);
 }

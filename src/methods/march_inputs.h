@@ -18,6 +18,7 @@
 
 #include <lucent/lucent.h>
 
+#include "backends/gpu.h"
 #include "kernels/lu_camera.h"
 #include "kernels/lu_lightview.h"
 #include "kernels/lu_optics.h"
@@ -68,5 +69,20 @@ lu_result lu_march_inputs_init(lu_march_inputs *mi, const lu_scene *scene, int s
 lu_result lu_march_inputs_update(lu_march_inputs *mi, const lu_scene *scene, const lu_k_light *kl, int nl,
                                  lu_error *err);
 void lu_march_inputs_free(lu_march_inputs *mi);
+
+/* The same inputs on the GPU: six storage buffers bound at first_binding
+ * .. first_binding + 5 (hits, spans, views, view table, shadow maps,
+ * boundary maps); the maps are re-uploaded only after a rebuild. */
+#define LU_MARCH_GPU_BUFFERS 6
+typedef struct lu_march_inputs_gpu {
+    lu_gpu_buffer *buf[LU_MARCH_GPU_BUFFERS];
+    size_t size[LU_MARCH_GPU_BUFFERS];
+    unsigned maps_version;
+    bool maps_uploaded;
+} lu_march_inputs_gpu;
+
+lu_result lu_march_inputs_gpu_put(lu_march_inputs_gpu *g, lu_gpu_context *ctx, const lu_march_inputs *mi,
+                                  const lu_scene *scene, int nl, int first_binding, lu_error *err);
+void lu_march_inputs_gpu_free(lu_march_inputs_gpu *g);
 
 #endif

@@ -179,6 +179,7 @@ static lu_result rm_render(void *state, const lu_scene *scene, lu_image *out, lu
     f->bmaps = st->in.bmaps;
     f->bmap_floats = st->in.bmap_floats;
     f->maps_version = st->in.maps_version;
+    f->in = &st->in;
     if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, f, out, err);
     st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, nl, f, st->in.views};
     lu_parallel_for(c->height, 1, render_rows, st, NULL);

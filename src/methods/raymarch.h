@@ -31,6 +31,7 @@ typedef struct lu_raymarch_frame {
     const float *bmaps;              /* boundary maps (march_inputs.h), NULL without bounded media */
     size_t bmap_floats;
     unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
+    const lu_march_inputs *in;       /* the buffers above, for the GPU upload */
 } lu_raymarch_frame;
 
 typedef struct lu_raymarch_gpu lu_raymarch_gpu;

@@ -7,16 +7,16 @@
 #include "methods/gpu_scene.h"
 #include "methods/raymarch.h"
 
-enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_BMAPS, B_COUNT };
+/* Bindings above the scene: the march inputs (LU_MARCH_GPU_BUFFERS), then the image. */
+#define B_OUT_BINDING (LU_SCENE_BINDING_FREE + LU_MARCH_GPU_BUFFERS)
 
 struct lu_raymarch_gpu {
     lu_gpu_context *ctx;
     lu_gpu_program *prog;
     lu_gpu_scene *scene;
-    lu_gpu_buffer *buf[B_COUNT];
-    size_t size[B_COUNT];
-    unsigned uploaded_version;      /* maps_version of the shadow maps on the GPU */
-    bool uploaded;
+    lu_march_inputs_gpu in;
+    lu_gpu_buffer *out;
+    size_t out_size;
 };
 
 lu_result lu_raymarch_gpu_create(const lu_scene *scene, lu_raymarch_gpu **out, lu_error *err) {
@@ -36,37 +36,21 @@ lu_result lu_raymarch_gpu_create(const lu_scene *scene, lu_raymarch_gpu **out, l
 
 void lu_raymarch_gpu_destroy(lu_raymarch_gpu *g) {
     if (!g) return;
-    for (int i = 0; i < B_COUNT; i++) lu_gpu_buffer_destroy(g->buf[i]);
+    lu_march_inputs_gpu_free(&g->in);
+    lu_gpu_buffer_destroy(g->out);
     lu_gpu_scene_destroy(g->scene);
     lu_gpu_program_destroy(g->prog);
     lu_gpu_context_destroy(g->ctx);
     free(g);
 }
 
-/* Uploads into slot i (growing it when needed) and binds it above the scene's bindings. */
-static lu_result put(lu_raymarch_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
-    return lu_gpu_slot_put(g->ctx, &g->buf[i], &g->size[i], LU_SCENE_BINDING_FREE + i, data, bytes, err);
-}
-
 lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, const lu_raymarch_frame *f, lu_image *out,
                                  lu_error *err) {
     size_t pixels = (size_t)f->width * f->height;
-    size_t texels = (size_t)f->map_res * f->map_res;
     lu_result r = lu_gpu_scene_update(g->scene, scene, err);
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
-    if (r == LU_OK) r = put(g, B_HITS, f->hits, pixels * 16 * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_SPANS, f->spans, pixels * (size_t)f->medium_count * 2 * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_VIEWS, f->views, (size_t)f->view_count * LU_RM_VIEW_FLOATS * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_TABLE, f->view_table, (size_t)f->light_count * 2 * sizeof(int), err);
-    /* Shadow maps only change with the lights: skip the upload when the CPU kept them. */
-    if (r == LU_OK) {
-        bool same = g->uploaded && g->uploaded_version == f->maps_version;
-        r = put(g, B_SHADOW, same ? NULL : f->shadow, (size_t)f->view_count * texels * sizeof(float), err);
-        if (r == LU_OK) r = put(g, B_BMAPS, same ? NULL : f->bmaps, f->bmap_floats * sizeof(float), err);
-        g->uploaded = r == LU_OK;
-        g->uploaded_version = f->maps_version;
-    }
-    if (r == LU_OK) r = put(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
+    if (r == LU_OK) r = lu_march_inputs_gpu_put(&g->in, g->ctx, f->in, scene, f->light_count, LU_SCENE_BINDING_FREE, err);
+    if (r == LU_OK) r = lu_gpu_slot_put(g->ctx, &g->out, &g->out_size, B_OUT_BINDING, NULL, pixels * 3 * sizeof(float), err);
     if (r != LU_OK) return r;
     lu_gpu_uniform_int(g->prog, "u_map_res", f->map_res);
     lu_gpu_uniform_float(g->prog, "u_step", f->step);
@@ -74,6 +58,6 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
     lu_gpu_uniform_int(g->prog, "u_jitter", f->jitter);
     lu_gpu_uniform_vec3(g->prog, "u_background", f->background.x, f->background.y, f->background.z);
     r = lu_gpu_dispatch(g->prog, (unsigned)(f->width + 7) / 8, (unsigned)(f->height + 7) / 8, 1, err);
-    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    if (r == LU_OK) r = lu_gpu_buffer_download(g->out, 0, out->rgb, pixels * 3 * sizeof(float), err);
     return r;
 }

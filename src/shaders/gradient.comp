@@ -15,14 +15,14 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 1) readonly buffer Spans { floa
 layout(std430, binding = LU_SCENE_BINDING_FREE + 2) readonly buffer Views { vec4 gr_views[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 3) readonly buffer ViewTable { int gr_view_table[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 4) readonly buffer Shadow { float gr_shadow[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 5) writeonly buffer Out { float gr_out[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 6) buffer Samples { float gr_samples[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 7) readonly buffer Cells { int gr_cells[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 8) readonly buffer Items { int gr_items[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 9) buffer Field { float gr_field[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 10) readonly buffer Params { lu_k_gr_params gr_par; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 11) buffer ErrTau { float gr_et[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 12) readonly buffer BMaps { float gr_bmaps[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 5) readonly buffer BMaps { float gr_bmaps[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 6) writeonly buffer Out { float gr_out[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 7) buffer Samples { float gr_samples[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 8) readonly buffer Cells { int gr_cells[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 9) readonly buffer Items { int gr_items[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 10) buffer Field { float gr_field[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 11) readonly buffer Params { lu_k_gr_params gr_par; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 12) buffer ErrTau { float gr_et[]; };
 
 uniform int u_pass;
 uniform int u_count;

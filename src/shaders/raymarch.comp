@@ -12,8 +12,8 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 1) readonly buffer Spans { floa
 layout(std430, binding = LU_SCENE_BINDING_FREE + 2) readonly buffer Views { vec4 rm_views[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 3) readonly buffer ViewTable { int rm_view_table[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 4) readonly buffer Shadow { float rm_shadow[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 5) writeonly buffer Out { float rm_out[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 6) readonly buffer BMaps { float rm_bmaps[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 5) readonly buffer BMaps { float rm_bmaps[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 6) writeonly buffer Out { float rm_out[]; };
 
 uniform int u_map_res;
 uniform float u_step;
