@@ -30,7 +30,7 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "int lu_k_rm_view_first(LU_CTX_PARAM, int l) { return 0; }\n"
                                 "int lu_k_rm_view_count(LU_CTX_PARAM, int l) { return 0; }\n"
                                 "lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v) { lu_k_lightview w; w.ortho = 1; return w; }\n"
-                                "float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) { return float(end); }\n"
+                                "float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int k) { return float(k); }\n"
                                 "float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return -1.0; }\n"
                                 "float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k) { return 0.0; }\n"
                                 "#include \"kernels/lu_gradient_params.h\"\n"

@@ -20,16 +20,20 @@
  *   int lu_k_rm_view_first(LU_CTX_PARAM, int l);  int lu_k_rm_view_count(LU_CTX_PARAM, int l);
  *   lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v);
  *   float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k);   (float k of the pixel's lu_k_rm_hit)
- *   float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end);   (end 0: start t, 1: end t)
+ *   float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int k);   (float k of the pixel's span record
+ *       of medium m, LU_K_RM_SPAN_FLOATS: 0 start t, 1 end t, 2 entry flag, 4..6 boundary normal,
+ *       7 shininess, 8..10 albedo, 12..14 specular; methods/march_inputs.h)
  *   float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k);  (boundary map view * media + m,
  *       texel (i, j), float k of LU_MARCH_BMAP_FLOATS: methods/march_inputs.h)
  *
  * Shadow rays through a bounded medium use the light's boundary map: the
  * segment of the light ray inside the boundary and the Fresnel transmittance
  * at its crossings, as the reference (exact for convex boundaries, to the
- * map's resolution). Simplifications against the reference (docs/gpu.md):
- * boundary reflection and environment lights are not rendered; a bounded
- * medium is present on the camera ray in its first span. */
+ * map's resolution). Where the camera ray enters a bounded medium, the
+ * boundary's reflection F_r times its material's Blinn-Phong radiance is
+ * added (the reference's term). Simplifications against the reference
+ * (docs/gpu.md): environment lights are not rendered; a bounded medium is
+ * present on the camera ray in its first span (and reflects there only). */
 #ifndef LU_RAYMARCH_H
 #define LU_RAYMARCH_H
 
@@ -64,6 +68,8 @@ LU_TYPEDEF(lu_k_rm_hit)
 #define LU_K_RM_HIT_FLOATS 16
 /* Floats per boundary-map texel (LU_MARCH_BMAP_FLOATS, methods/march_inputs.h). */
 #define LU_K_RM_BMAP_FLOATS 4
+/* Floats per pixel and medium of the span record (LU_MARCH_SPAN_FLOATS). */
+#define LU_K_RM_SPAN_FLOATS 16
 
 LU_FN vec3 lu_k_rm_hit_fetch3(LU_CTX_PARAM, int pixel, int k) {
     return lu_v3(lu_k_rm_hit_fetch(LU_CTX, pixel, k), lu_k_rm_hit_fetch(LU_CTX, pixel, k + 1),
@@ -226,6 +232,25 @@ LU_FN vec3 lu_k_rm_end(LU_CTX_PARAM, lu_k_rm_params P, lu_k_rm_hit hit, vec3 o, 
     return end;
 }
 
+/* Reflection off bounded medium m's boundary where the camera ray of
+ * `pixel` enters it: F_r times the boundary material's Blinn-Phong radiance
+ * there (lu_k_rm_end on a hit record made of the span's normal and material). */
+LU_FN vec3 lu_k_rm_boundary_reflection(LU_CTX_PARAM, lu_k_rm_params P, int pixel, int m, vec3 o, vec3 d) {
+    if (lu_k_rm_span(LU_CTX, pixel, m, 2) == 0.0f) return lu_v3s(0.0f);
+    lu_k_rm_hit b;
+    b.t = lu_k_rm_span(LU_CTX, pixel, m, 0);
+    b.n = lu_v3(lu_k_rm_span(LU_CTX, pixel, m, 4), lu_k_rm_span(LU_CTX, pixel, m, 5), lu_k_rm_span(LU_CTX, pixel, m, 6));
+    b.ng = b.n;
+    b.pad0 = 0.0f;
+    b.shininess = lu_k_rm_span(LU_CTX, pixel, m, 7);
+    b.albedo = lu_v3(lu_k_rm_span(LU_CTX, pixel, m, 8), lu_k_rm_span(LU_CTX, pixel, m, 9), lu_k_rm_span(LU_CTX, pixel, m, 10));
+    b.specular = lu_v3(lu_k_rm_span(LU_CTX, pixel, m, 12), lu_k_rm_span(LU_CTX, pixel, m, 13),
+                       lu_k_rm_span(LU_CTX, pixel, m, 14));
+    b.pad1 = 0.0f;
+    float fr = lu_k_fresnel_reflectance(lu_v3_dot(b.n, d), lu_k_medium_get(LU_CTX, m).eta);
+    return lu_v3_scale(lu_k_rm_end(LU_CTX, P, b, o, d), fr);
+}
+
 /* Radiance along the camera ray o + t d of `pixel`; u in [0, 1) is where
  * in each step the sample sits (0.5: midpoint). */
 LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, float u) {
@@ -234,16 +259,20 @@ LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, v
     int nm = lu_min(lu_k_medium_count(LU_CTX), LU_K_RM_MAX_MEDIA);
     float ra[LU_K_RM_MAX_MEDIA];
     float rb[LU_K_RM_MAX_MEDIA];
+    bool reflect[LU_K_RM_MAX_MEDIA];   /* boundary reflection still to add */
     float t0 = LU_K_FAR, t1 = 0.0f;
     for (int m = 0; m < nm; m++) {
         lu_k_medium md = lu_k_medium_get(LU_CTX, m);
         float a = 0.0f, b = 0.0f;
+        reflect[m] = md.bounded != 0 && lu_k_rm_span(LU_CTX, pixel, m, 2) != 0.0f &&
+                     lu_k_rm_span(LU_CTX, pixel, m, 0) < t_end;
         if (lu_k_rm_medium_range(LU_CTX, md, m, pixel, o, d, t_end, LU_REF(a), LU_REF(b))) {
             t0 = lu_min(t0, a);
             t1 = lu_max(t1, b);
         } else {
             a = 1.0f;
             b = 0.0f;
+            reflect[m] = false;
         }
         ra[m] = a;
         rb[m] = b;
@@ -256,6 +285,12 @@ LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, v
         for (int i = 0; i < steps; i++) {
             float t = t0 + (lu_float(i) + u) * h;
             vec3 x = lu_v3_madd(o, d, t);
+            /* the boundary reflects with the camera transmittance in front of it */
+            for (int m = 0; m < nm; m++) {
+                if (!reflect[m] || t < ra[m]) continue;
+                L = lu_v3_add(L, lu_v3_mul(T, lu_k_rm_boundary_reflection(LU_CTX, P, pixel, m, o, d)));
+                reflect[m] = false;
+            }
             vec3 sig_t = lu_v3s(0.0f);
             float dens[LU_K_RM_MAX_MEDIA];
             bool scatters = false;
@@ -279,6 +314,8 @@ LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, v
             T = lu_v3_mul(T, tr);
         }
     }
+    for (int m = 0; m < nm; m++)
+        if (reflect[m]) L = lu_v3_add(L, lu_v3_mul(T, lu_k_rm_boundary_reflection(LU_CTX, P, pixel, m, o, d)));
     return lu_v3_add(L, lu_v3_mul(T, lu_k_rm_end(LU_CTX, P, hit, o, d)));
 }
 

@@ -59,8 +59,8 @@ static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k
 static inline float lu_k_rm_bmap(const struct lu_k_ctx *c, int map, int i, int j, int k) {
     return c->in->bmaps[(((size_t)map * c->in->res + j) * c->in->res + i) * LU_MARCH_BMAP_FLOATS + k];
 }
-static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) {
-    return c->in->spans[((size_t)pixel * c->nm + m) * 2 + end];
+static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int k) {
+    return c->in->spans[((size_t)pixel * c->nm + m) * LU_MARCH_SPAN_FLOATS + k];
 }
 static inline lu_k_gr_params lu_k_gr_get(const struct lu_k_ctx *c) { return c->G; }
 static inline lu_vec3 lu_k_gr_field(const struct lu_k_ctx *c, int i) {

@@ -98,10 +98,10 @@ static void hit_rows(void *ctx, int64_t begin, int64_t end, int thread) {
                 memcpy(h + 12, &mt->specular, 12);
                 t_end = hit.t;
             }
-            float *sp = mi->spans + px * (size_t)nm * 2;
             for (int m = 0; m < nm; m++) {
-                sp[2 * m] = 0.0f;
-                sp[2 * m + 1] = LU_K_FAR;
+                float *sp = mi->spans + (px * (size_t)nm + m) * LU_MARCH_SPAN_FLOATS;
+                memset(sp, 0, LU_MARCH_SPAN_FLOATS * sizeof *sp);
+                sp[1] = LU_K_FAR;
                 if (!mi->boundary[m]) continue;
                 /* The first span inside the boundary along the ray (all of it
                  * for a convex boundary). */
@@ -109,12 +109,20 @@ static void hit_rows(void *ctx, int64_t begin, int64_t end, int thread) {
                 int n = lu_accel_all_hits(mi->boundary[m], o, d, 0.0f, t_end, hs, 2);
                 bool inside = lu_accel_inside(mi->boundary[m], o);
                 if (inside) {
-                    sp[2 * m + 1] = n > 0 ? hs[0].t : LU_K_FAR;
+                    sp[1] = n > 0 ? hs[0].t : LU_K_FAR;
                 } else if (n > 0) {
-                    sp[2 * m] = hs[0].t;
-                    sp[2 * m + 1] = n > 1 ? hs[1].t : LU_K_FAR;
+                    sp[0] = hs[0].t;
+                    sp[1] = n > 1 ? hs[1].t : LU_K_FAR;
+                    /* entering: the boundary reflects (its material, normal towards the viewer) */
+                    const lu_material *sm = &s->media[m].surface;
+                    lu_vec3 ng = lu_v3_dot(hs[0].ng, d) > 0.0f ? lu_v3_neg(hs[0].ng) : hs[0].ng;
+                    sp[2] = 1.0f;
+                    memcpy(sp + 4, &ng, 12);
+                    sp[7] = sm->shininess;
+                    memcpy(sp + 8, &sm->albedo, 12);
+                    memcpy(sp + 12, &sm->specular, 12);
                 } else {
-                    sp[2 * m + 1] = 0.0f;
+                    sp[1] = 0.0f;
                 }
             }
         }
@@ -128,7 +136,7 @@ static lu_result build_hits(lu_march_inputs *mi, const lu_scene *scene, lu_error
         free(mi->hits);
         free(mi->spans);
         mi->hits = malloc(pixels * LU_MARCH_HIT_FLOATS * sizeof(float));
-        mi->spans = malloc(pixels * (size_t)(mi->medium_count ? mi->medium_count : 1) * 2 * sizeof(float));
+        mi->spans = malloc(pixels * (size_t)(mi->medium_count ? mi->medium_count : 1) * LU_MARCH_SPAN_FLOATS * sizeof(float));
         mi->pixels_cap = mi->hits && mi->spans ? pixels : 0;
         mi->hits_valid = false;
         if (!mi->hits || !mi->spans)
@@ -264,7 +272,7 @@ lu_result lu_march_inputs_gpu_put(lu_march_inputs_gpu *g, lu_gpu_context *ctx, c
     size_t texels = (size_t)mi->res * mi->res;
     const void *data[LU_MARCH_GPU_BUFFERS] = {mi->hits, mi->spans, mi->views_packed, mi->view_table, mi->shadow, mi->bmaps};
     size_t bytes[LU_MARCH_GPU_BUFFERS] = {pixels * LU_MARCH_HIT_FLOATS * sizeof(float),
-                                          pixels * (size_t)mi->medium_count * 2 * sizeof(float),
+                                          pixels * (size_t)mi->medium_count * LU_MARCH_SPAN_FLOATS * sizeof(float),
                                           (size_t)mi->view_count * LU_MARCH_VIEW_FLOATS * sizeof(float),
                                           (size_t)nl * 2 * sizeof(int),
                                           (size_t)mi->view_count * texels * sizeof(float),

@@ -30,6 +30,12 @@
  * of the light ray inside the boundary; b <= a: none), F_t at a, F_t at b
  * (1 where the segment ends at the light, not at a crossing). */
 #define LU_MARCH_BMAP_FLOATS 4
+/* Floats per pixel and medium in the span buffer: t0, t1 (the first span of
+ * the camera ray inside the medium's boundary; 0, far for unbounded media),
+ * entry flag (1 when the ray enters through the boundary at t0), -, the
+ * boundary's geometric normal there (facing the viewer), the boundary
+ * material's shininess, albedo, -, specular, - (for the reflection term). */
+#define LU_MARCH_SPAN_FLOATS 16
 /* Floats per pixel in the hit buffer (lu_k_rm_hit in kernels/lu_raymarch.h). */
 #define LU_MARCH_HIT_FLOATS 16
 
@@ -41,7 +47,7 @@ typedef struct lu_march_inputs {
     lu_accel **boundary;       /* per medium, NULL when unbounded */
     int medium_count;
     /* camera rays */
-    float *hits, *spans;       /* pixels*LU_MARCH_HIT_FLOATS, pixels*medium_count*2 */
+    float *hits, *spans;       /* pixels*LU_MARCH_HIT_FLOATS, pixels*medium_count*LU_MARCH_SPAN_FLOATS */
     size_t pixels_cap;
     lu_camera hits_cam;
     bool hits_valid;

@@ -45,14 +45,15 @@ static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k
 static inline float lu_k_rm_bmap(const struct lu_k_ctx *c, int map, int i, int j, int k) {
     return c->f->bmaps[(((size_t)map * c->f->map_res + j) * c->f->map_res + i) * LU_MARCH_BMAP_FLOATS + k];
 }
-static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) {
-    return c->f->spans[((size_t)pixel * c->nm + m) * 2 + end];
+static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int k) {
+    return c->f->spans[((size_t)pixel * c->nm + m) * LU_MARCH_SPAN_FLOATS + k];
 }
 
 #include "kernels/lu_raymarch.h"
 
 _Static_assert(LU_K_RM_HIT_FLOATS == LU_MARCH_HIT_FLOATS, "hit record size");
 _Static_assert(LU_K_RM_BMAP_FLOATS == LU_MARCH_BMAP_FLOATS, "boundary map texel size");
+_Static_assert(LU_K_RM_SPAN_FLOATS == LU_MARCH_SPAN_FLOATS, "span record size");
 
 enum { P_STEPS, P_JITTER, P_SHADOW_RES, P_COUNT };
 

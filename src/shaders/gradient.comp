@@ -52,8 +52,8 @@ float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return gr_hits[pixel *
 float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k) {
     return gr_bmaps[((map * gr_par.map_res + j) * gr_par.map_res + i) * 4 + k]; // 4: LU_K_RM_BMAP_FLOATS (defined after these hooks)
 }
-float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) {
-    return gr_spans[(pixel * lu_scene_medium_count() + m) * 2 + end];
+float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int k) {
+    return gr_spans[(pixel * lu_scene_medium_count() + m) * 16 + k]; // 16: LU_K_RM_SPAN_FLOATS
 }
 lu_k_gr_params lu_k_gr_get(LU_CTX_PARAM) { return gr_par; }
 vec3 lu_k_gr_field(LU_CTX_PARAM, int i) { return vec3(gr_field[3 * i], gr_field[3 * i + 1], gr_field[3 * i + 2]); }

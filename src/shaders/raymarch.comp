@@ -40,8 +40,8 @@ float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return rm_hits[pixel *
 float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k) {
     return rm_bmaps[((map * u_map_res + j) * u_map_res + i) * 4 + k]; // 4: LU_K_RM_BMAP_FLOATS (defined after these hooks)
 }
-float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) {
-    return rm_spans[(pixel * lu_scene_medium_count() + m) * 2 + end];
+float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int k) {
+    return rm_spans[(pixel * lu_scene_medium_count() + m) * 16 + k]; // 16: LU_K_RM_SPAN_FLOATS
 }
 
 #include "../kernels/lu_raymarch.h"
