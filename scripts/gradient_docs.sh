@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Regenerates the measurements of docs/gradient.md under docs/gradient/:
-#   bench.csv       gradient, rbf, pervoxel, raymarch on every bundled volume
+#   bench.csv       gradient, rbf, pervoxel on every bundled volume
 #                   scene, rel-L2 against the reference (BACKENDS, default cpu,gpu)
 #   glow.csv        smoke_glow: gradient vs rbf (the paper's 4.3 % vs 14.7 % claim)
 #   resolution.csv  frame time vs density resolution 32^3..256^3, gradient vs pervoxel
@@ -10,7 +10,8 @@
 # All timings are medians of `lucent bench` in one run per table, so the
 # ratios are what to read. SECTIONS="bench glow ..." limits the run; SIZE
 # sets the image size (default 160x120); RES_MAX the largest resolution
-# (default 256); BACKENDS the backends of the timing tables (default cpu);
+# (default 256; RES_LIST the resolutions, default "32 64 128 256"; KEEP=1
+# appends to resolution.csv instead of rewriting it); BACKENDS the backends of the timing tables (default cpu);
 # LIGHTS_RES the density resolution of the light-count table (default 64).
 #
 #   scripts/gradient_docs.sh [BUILD_DIR]      (default: build)
@@ -21,6 +22,7 @@ L=$BUILD/lucent
 OUT=${OUT:-docs/gradient}
 SIZE=${SIZE:-160x120}
 RES_MAX=${RES_MAX:-256}
+RES_LIST=${RES_LIST:-"32 64 128 256"}
 SECTIONS=${SECTIONS:-"bench glow resolution lights shaft plot"}
 BENCH_BACKENDS=${BENCH_BACKENDS:-cpu,gpu}
 BACKENDS=${BACKENDS:-cpu}
@@ -58,7 +60,7 @@ if want bench; then
     rm -f "$OUT/bench.csv"
     for s in smoke_glow spot_shaft dusty_room smoke_box demo bunny_fog cube_torus layered_cube homogeneous_sphere; do
         echo "bench $s" >&2
-        bench "scenes/$s.json" "$OUT/bench.csv" --methods gradient,rbf,pervoxel,raymarch --backends "$BENCH_BACKENDS" \
+        bench "scenes/$s.json" "$OUT/bench.csv" --methods gradient,rbf,pervoxel --backends "$BENCH_BACKENDS" \
             --frames 3 --warmup 1
     done
 fi
@@ -87,8 +89,8 @@ EOF
 fi
 
 if want resolution; then
-    rm -f "$OUT/resolution.csv"
-    for r in 32 64 128 256; do
+    [[ -n ${KEEP:-} ]] || rm -f "$OUT/resolution.csv"
+    for r in $RES_LIST; do
         [[ $r -le $RES_MAX ]] || continue
         echo "resolution $r" >&2
         variant scenes/smoke_glow.json "$TMP/glow_$r.json" "s['media'][0]['density']['resolution'] = $r"
@@ -152,7 +154,7 @@ if want plot && [[ -s $OUT/resolution.csv && -s $OUT/lights.csv ]]; then
     awk -F, 'NR > 1 && $3 == "gradient" {print $1, $6}' "$OUT/lights.csv" >"$TMP/lg.dat"
     awk -F, 'NR > 1 && $3 == "pervoxel" {print $1, $6}' "$OUT/lights.csv" >"$TMP/lp.dat"
     gnuplot <<EOF
-set terminal pngcairo size 1000,420 font ",10"
+set terminal pngcairo size 1000,420 font ",10" noenhanced
 set output "$OUT/scaling.png"
 set multiplot layout 1,2
 set logscale xy 2

@@ -573,7 +573,9 @@ static void march_rows(void *ctx, int64_t begin, int64_t end, int thread) {
         }
 }
 
-/* Fraction of radiance voxels with density that no valid sphere holds. */
+/* Fraction of radiance voxels with density whose field is exactly 0 (no
+ * valid sphere holds them, or every light is blocked there); every 7th
+ * voxel, only when the stats are printed. */
 static double uncovered_fraction(gr_state *st) {
     if (st->mode == LU_K_GR_PERVOXEL) return 0.0;
     const lu_k_gr_params *G = &st->kctx.G;
@@ -694,8 +696,6 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
         if (r != LU_OK) return r;
     } else {
         st->nfinal = 0;
-        int zero = 0;
-        (void)zero;
         size_t nc = (size_t)G.cx * G.cy * G.cz + 1;
         if (nc > st->cells_cap) {
             free(st->cell_begin);
@@ -733,7 +733,7 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
         st->stats.ms_field = 1e3 * (t1 - t0);
         lu_parallel_for(c->height, 1, march_rows, st, NULL);
         st->stats.ms_march = 1e3 * (lu_time_seconds() - t1);
-        st->stats.uncovered = uncovered_fraction(st);
+        if (getenv("LUCENT_GRADIENT_STATS")) st->stats.uncovered = uncovered_fraction(st);
     }
     if (r == LU_OK && getenv("LUCENT_GRADIENT_STATS"))
         fprintf(stderr,
