@@ -200,7 +200,7 @@ static void compose(viewer *v) {
         v->rgb[i] = (uint8_t)lrintf(255.0f * (e < 1.0f ? e : 1.0f));
     }
     if (!v->overlay) return;
-    int scale = w >= 480 ? 2 : 1;
+    int scale;
     char lines[5][160];
     const lu_method *m = current_method(v);
     snprintf(lines[0], sizeof lines[0], "%s on %s", m->name, lu_backend_name(backend_for(v)));
@@ -214,12 +214,16 @@ static void compose(viewer *v) {
     static const char *const kinds[] = {"point", "spot", "directional", "environment"};
     snprintf(lines[3], sizeof lines[3], "light %d/%d %s  %dx%d", v->scene.light_count ? v->light + 1 : 0,
              v->scene.light_count, l ? kinds[l->type] : "-", w, h);
-    snprintf(lines[4], sizeof lines[4], "%s", v->status[0] ? v->status : "tab: method  +/-: quality  arrows: light  h: help off");
-    int lh = (LU_FONT_H + 3) * scale, bw = 0;
+    snprintf(lines[4], sizeof lines[4], "%s", v->status[0] ? v->status : "tab method  +/- quality  arrows light  h hide");
+    int bw = 0;
     for (int i = 0; i < 5; i++) {
-        int tw = lu_font_text_width(lines[i], scale);
+        int tw = lu_font_text_width(lines[i], 1);
         if (tw > bw) bw = tw;
     }
+    /* double size when the widest line still fits */
+    scale = 2 * bw + 12 <= w ? 2 : 1;
+    bw *= scale;
+    int lh = (LU_FONT_H + 3) * scale;
     lu_font_backdrop(v->rgb, w, h, 0, 0, bw + 6 * scale, 5 * lh + 4 * scale);
     static const uint8_t white[3] = {235, 235, 235}, amber[3] = {255, 190, 60}, red[3] = {255, 90, 80};
     for (int i = 0; i < 5; i++)
