@@ -357,6 +357,7 @@ static lu_result rm_render(void *state, const lu_scene *scene, lu_image *out, lu
     f->view_table = st->view_table;
     f->shadow = st->shadow;
     f->maps_version = st->maps_version;
+    f->max_steps = st->steps;
     if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, f, out, err);
     st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, nl, f, st->views};
     lu_parallel_for(c->height, 1, render_rows, st, NULL);

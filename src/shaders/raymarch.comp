@@ -1,7 +1,10 @@
 /* raymarch.comp — the raymarch method on the GPU: one invocation per pixel
  * running kernels/lu_raymarch.h over the shared GPU scene
  * (kernels/lu_scene_gpu.glsl) and the frame buffers the CPU built (opaque
- * hits, bounded-media spans, light views, shadow maps). */
+ * hits, bounded-media spans, light views, shadow maps). One dispatch marches
+ * steps [u_seg_begin, u_seg_end) and keeps (L, tau) per pixel in RmState; the
+ * last one (u_finish = 1) adds the ray's end and writes the pixel (see
+ * lu_k_rm_segment for why the march is split). */
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "../kernels/lu_scene_gpu.glsl"
@@ -13,12 +16,16 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 2) readonly buffer Views { vec4
 layout(std430, binding = LU_SCENE_BINDING_FREE + 3) readonly buffer ViewTable { int rm_view_table[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 4) readonly buffer Shadow { float rm_shadow[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 5) writeonly buffer Out { float rm_out[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 6) buffer RmState { vec4 rm_state[]; };
 
 uniform int u_map_res;
 uniform float u_step;
 uniform float u_eps;
 uniform int u_jitter;
 uniform vec3 u_background;
+uniform int u_seg_begin;
+uniform int u_seg_end;
+uniform int u_finish;
 
 float lu_k_shadow_depth(LU_CTX_PARAM, int map, int i, int j) { return rm_shadow[(map * u_map_res + j) * u_map_res + i]; }
 int lu_k_rm_view_first(LU_CTX_PARAM, int l) { return rm_view_table[2 * l]; }
@@ -55,7 +62,19 @@ void main() {
     P.pad = 0;
     int px = y * w + x;
     vec3 d = lu_k_camera_dir(lu_scene_camera(), float(x) + 0.5, float(y) + 0.5);
-    vec3 L = lu_k_rm_radiance(0, P, px, lu_scene_camera_position(), d, lu_k_rm_jitter(P.jitter, px));
+    vec3 o = lu_scene_camera_position();
+    vec3 L = vec3(0.0), tau = vec3(0.0);
+    if (u_seg_begin > 0) {
+        L = rm_state[2 * px].xyz;
+        tau = rm_state[2 * px + 1].xyz;
+    }
+    lu_k_rm_segment(0, P, px, o, d, lu_k_rm_jitter(P.jitter, px), u_seg_begin, u_seg_end, L, tau);
+    if (u_finish == 0) {
+        rm_state[2 * px] = vec4(L, 0.0);
+        rm_state[2 * px + 1] = vec4(tau, 0.0);
+        return;
+    }
+    L = lu_k_rm_finish(0, P, px, o, d, L, tau);
     rm_out[3 * px] = L.x;
     rm_out[3 * px + 1] = L.y;
     rm_out[3 * px + 2] = L.z;
