@@ -35,7 +35,7 @@ static void usage(void) {
            "controls:\n"
            "  left drag           orbit the camera around its look-at point\n"
            "  wheel, PgUp/PgDn    zoom (move the camera along its view direction)\n"
-           "  arrow keys          move the selected light around the look-at point\n"
+           "  right drag, arrows  move the selected light around the look-at point\n"
            "                      (directional lights: turn the direction)\n"
            "  L                   select the next light\n"
            "  Tab / Shift+Tab     next / previous method\n"
@@ -97,7 +97,7 @@ typedef struct viewer {
     double fps_t0;
     int fps_frames;
     double fps;
-    bool dragging;
+    bool dragging, dragging_light;
     double mx, my;
     char status[256];          /* last error, shown in the overlay */
 } viewer;
@@ -357,19 +357,22 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
 
 static void on_button(GLFWwindow *win, int button, int action, int mods) {
     (void)mods;
-    if (button != GLFW_MOUSE_BUTTON_LEFT) return;
-    g_v->dragging = action == GLFW_PRESS;
+    if (button == GLFW_MOUSE_BUTTON_LEFT) g_v->dragging = action == GLFW_PRESS;
+    else if (button == GLFW_MOUSE_BUTTON_RIGHT) g_v->dragging_light = action == GLFW_PRESS;
+    else return;
     glfwGetCursorPos(win, &g_v->mx, &g_v->my);
 }
 
 static void on_cursor(GLFWwindow *win, double x, double y) {
     (void)win;
     viewer *v = g_v;
-    if (!v->dragging) return;
+    if (!v->dragging && !v->dragging_light) return;
     double dx = x - v->mx, dy = y - v->my;
     v->mx = x;
     v->my = y;
-    if (dx != 0 || dy != 0) orbit(v, (float)(-dx * 0.01), (float)(dy * 0.01));
+    if (dx == 0 && dy == 0) return;
+    if (v->dragging) orbit(v, (float)(-dx * 0.01), (float)(dy * 0.01));
+    else move_light(v, (float)(dx * 0.01), (float)(-dy * 0.01));
 }
 
 static void on_scroll(GLFWwindow *win, double xoff, double yoff) {
