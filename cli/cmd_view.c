@@ -29,6 +29,7 @@ static void usage(void) {
            "  --size WxH          image and window size (default: the scene camera's)\n"
            "  --exposure E        scale by 2^E before the sRGB curve (default 0)\n"
            "  --no-overlay        start with the overlay hidden\n"
+           "  --compare           render the reference first (as key C does)\n"
            "  --screenshot FILE   render --frames frames, save the window's last frame (PNG), exit\n"
            "  --frames N          frames to render with --screenshot (default 1)\n"
            "\n"
@@ -42,6 +43,9 @@ static void usage(void) {
            "  + / -               double / halve the method's main quality knob\n"
            "                      (raymarch.steps, bssrdf.splats, reference.steps, pathtrace: passes)\n"
            "  E / D               exposure up / down by 1/2 stop\n"
+           "  C                   render the reference for this view; the overlay then shows\n"
+           "                      the live rel-L2 of each frame against it (until the view\n"
+           "                      or a light changes)\n"
            "  H                   show / hide the overlay\n"
            "  R                   reset camera and lights\n"
            "  Esc, Q              quit\n"
@@ -100,6 +104,11 @@ typedef struct viewer {
     bool dragging, dragging_light;
     double mx, my;
     char status[256];          /* last error, shown in the overlay */
+    /* live error: the reference rendered (key C) for one camera and set of lights */
+    lu_image ref;
+    lu_camera ref_cam;
+    lu_light *ref_lights;
+    double rel_l2;             /* of the shown image against ref; < 0: none or stale */
 } viewer;
 
 static viewer *g_v;            /* GLFW callbacks reach the viewer through this */
@@ -191,6 +200,40 @@ fail:
     return false;
 }
 
+/* True when the cached reference was rendered for the current view and lights. */
+static bool ref_current(const viewer *v) {
+    return v->ref.rgb && memcmp(&v->ref_cam, &v->scene.camera, sizeof v->ref_cam) == 0 &&
+           memcmp(v->ref_lights, v->scene.lights, (size_t)v->scene.light_count * sizeof *v->ref_lights) == 0;
+}
+
+/* Renders `reference` (CPU, the --set reference.* settings) for the current
+ * view and lights: the truth the overlay's live rel-L2 is measured against. */
+static bool render_reference(viewer *v) {
+    lu_error err = {0};
+    lu_renderer *r = NULL;
+    lu_image_destroy(&v->ref);
+    memset(&v->ref, 0, sizeof v->ref);
+    lu_result rc = lu_renderer_create("reference", &v->scene, &v->settings, LU_BACKEND_CPU, &r, &err);
+    if (rc == LU_OK) rc = lu_renderer_render(r, &v->scene, &v->ref, &err);
+    lu_renderer_destroy(r);
+    if (rc != LU_OK) {
+        lu_image_destroy(&v->ref);
+        memset(&v->ref, 0, sizeof v->ref);
+        snprintf(v->status, sizeof v->status, "reference: %.190s", err.message);
+        return false;
+    }
+    v->ref_cam = v->scene.camera;
+    memcpy(v->ref_lights, v->scene.lights, (size_t)v->scene.light_count * sizeof *v->ref_lights);
+    return true;
+}
+
+static void update_error(viewer *v) {
+    v->rel_l2 = -1.0;
+    lu_metrics m;
+    lu_error err;
+    if (ref_current(v) && lu_image_compare(&v->img, &v->ref, &m, &err) == LU_OK) v->rel_l2 = m.rel_l2;
+}
+
 /* Tone maps like the PNG writer (lu_image_save), then draws the overlay. */
 static void compose(viewer *v) {
     int w = v->img.width, h = v->img.height;
@@ -204,7 +247,11 @@ static void compose(viewer *v) {
     char lines[5][160];
     const lu_method *m = current_method(v);
     snprintf(lines[0], sizeof lines[0], "%s on %s", m->name, lu_backend_name(backend_for(v)));
-    snprintf(lines[1], sizeof lines[1], "%.1f ms/frame  %.1f fps  prepare %.0f ms", v->last_ms, v->fps, v->prepare_ms);
+    char err_text[48] = "";
+    if (v->rel_l2 >= 0.0) snprintf(err_text, sizeof err_text, "  rel-L2 %.2g", v->rel_l2);
+    else if (v->ref.rgb) snprintf(err_text, sizeof err_text, "  (C: new reference)");
+    snprintf(lines[1], sizeof lines[1], "%.1f ms/frame  %.1f fps  prepare %.0f ms%s", v->last_ms, v->fps, v->prepare_ms,
+             err_text);
     char knob[64] = "";
     for (size_t i = 0; i < sizeof k_knobs / sizeof k_knobs[0]; i++)
         if (strcmp(k_knobs[i].method, m->name) == 0 && strcmp(m->name, "pathtrace") != 0)
@@ -345,6 +392,10 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
     case GLFW_KEY_E: v->exposure += 0.5f; break;
     case GLFW_KEY_D: v->exposure -= 0.5f; break;
     case GLFW_KEY_H: v->overlay = !v->overlay; break;
+    case GLFW_KEY_C:
+        /* blocking: the reference takes seconds on a large image */
+        if (render_reference(v)) update_error(v);
+        break;
     case GLFW_KEY_R:
         v->scene.camera = v->cam0;
         memcpy(v->scene.lights, v->lights0, (size_t)v->scene.light_count * sizeof *v->lights0);
@@ -417,6 +468,7 @@ static GLFWwindow *open_window(int w, int h, const char *title) {
 int lu_cmd_view(int argc, char **argv) {
     const char *scene_path = NULL, *method = "raymarch", *shot = NULL;
     int width = 0, height = 0, frames = 1, rc = LU_EXIT_OK;
+    bool compare = false;
     static viewer v;
     memset(&v, 0, sizeof v);
     v.want_backend = LU_BACKEND_GPU;
@@ -441,6 +493,8 @@ int lu_cmd_view(int argc, char **argv) {
             char *end;
             v.exposure = strtof(argv[++i], &end);
             if (*end) rc = lu_cli_usage("view", "--exposure takes a number");
+        } else if (strcmp(a, "--compare") == 0) {
+            compare = true;
         } else if (strcmp(a, "--no-overlay") == 0) {
             v.overlay = false;
         } else if (strcmp(a, "--screenshot") == 0 && has_next) {
@@ -481,10 +535,12 @@ int lu_cmd_view(int argc, char **argv) {
     v.cam0 = v.scene.camera;
     int w = v.scene.camera.width, h = v.scene.camera.height;
     v.lights0 = malloc((size_t)(v.scene.light_count ? v.scene.light_count : 1) * sizeof *v.lights0);
+    v.ref_lights = malloc((size_t)(v.scene.light_count ? v.scene.light_count : 1) * sizeof *v.ref_lights);
+    v.rel_l2 = -1.0;
     v.accum = malloc((size_t)w * h * 3 * sizeof(float));
     v.rgb = malloc((size_t)w * h * 3);
     GLFWwindow *win = NULL;
-    if (!v.lights0 || !v.accum || !v.rgb || lu_image_create(&v.img, w, h, &err) != LU_OK) {
+    if (!v.lights0 || !v.ref_lights || !v.accum || !v.rgb || lu_image_create(&v.img, w, h, &err) != LU_OK) {
         fprintf(stderr, "lucent view: error: out of memory for a %dx%d image\n", w, h);
         rc = LU_EXIT_FAIL;
         goto done;
@@ -517,6 +573,7 @@ int lu_cmd_view(int argc, char **argv) {
     glfwSetScrollCallback(win, on_scroll);
     v.need_create = true;
     v.dirty = true;
+    if (compare && !render_reference(&v)) fprintf(stderr, "lucent view: %s\n", v.status);
     v.fps_t0 = glfwGetTime();
     int frame = 0;
     while (!glfwWindowShouldClose(win)) {
@@ -524,7 +581,7 @@ int lu_cmd_view(int argc, char **argv) {
          * progressive ones keep adding passes; --screenshot renders every frame. */
         bool render_now = v.dirty || progressive(&v) || shot;
         if (render_now) {
-            render_frame(&v);
+            if (render_frame(&v)) update_error(&v);
             v.fps_frames++;
             double now = glfwGetTime();
             if (now - v.fps_t0 >= 0.5 || v.fps_frames == 1) {
@@ -541,8 +598,10 @@ int lu_cmd_view(int argc, char **argv) {
             if (!save_screenshot(w, h, shot, &err)) {
                 rc = lu_cli_error("view", &err);
             } else {
-                fprintf(stderr, "lucent view: %s after %d frames of %s on %s (last %.1f ms)\n", shot, frames,
+                fprintf(stderr, "lucent view: %s after %d frames of %s on %s (last %.1f ms)", shot, frames,
                         current_method(&v)->name, lu_backend_name(backend_for(&v)), v.last_ms);
+                if (v.rel_l2 >= 0.0) fprintf(stderr, ", rel-L2 vs reference %.6g", v.rel_l2);
+                fputc('\n', stderr);
                 if (v.status[0]) rc = LU_EXIT_FAIL;
             }
             break;
@@ -559,6 +618,8 @@ int lu_cmd_view(int argc, char **argv) {
 done:
     lu_renderer_destroy(v.r);
     lu_image_destroy(&v.img);
+    lu_image_destroy(&v.ref);
+    free(v.ref_lights);
     free(v.accum);
     free(v.rgb);
     free(v.lights0);
