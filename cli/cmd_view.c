@@ -578,8 +578,9 @@ int lu_cmd_view(int argc, char **argv) {
     int frame = 0;
     while (!glfwWindowShouldClose(win)) {
         /* Deterministic methods render again only after a change;
-         * progressive ones keep adding passes; --screenshot renders every frame. */
-        bool render_now = v.dirty || progressive(&v) || shot;
+         * progressive ones keep adding passes (until one fails); --screenshot
+         * renders every frame. */
+        bool render_now = v.dirty || (progressive(&v) && !v.status[0]) || shot;
         if (render_now) {
             if (render_frame(&v)) update_error(&v);
             v.fps_frames++;
