@@ -615,7 +615,10 @@ int lu_cmd_view(int argc, char **argv) {
     lu_renderer_destroy(v.r);
     v.r = NULL;
     glfwDestroyWindow(win);
-    glfwTerminate();
+    /* No glfwTerminate: it closes the display and unloads the GL driver, and
+     * Mesa 22.3's swrast_dri.so leaks on every unload (LeakSanitizer; the same
+     * reason the GPU backend never terminates its EGL displays, context.c).
+     * The process ends right after this command. */
 done:
     lu_renderer_destroy(v.r);
     lu_image_destroy(&v.img);
