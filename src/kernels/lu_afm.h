@@ -39,7 +39,7 @@
  *   lookup: float lu_k_afm_fetch(LU_CTX_PARAM, int texel, int i);
  *           int lu_k_afm_view_first(LU_CTX_PARAM, int l), lu_k_afm_view_count(LU_CTX_PARAM, int l);
  *           lu_k_lightview lu_k_afm_view(LU_CTX_PARAM, int v);
- *   render: lu_k_afm_params lu_k_afm_params_get(LU_CTX_PARAM);
+ *   render: int lu_k_afm_param(LU_CTX_PARAM, int i)  (i 0..3: res, coefs, samples, channels);
  *           float lu_k_afm_cam_normal(LU_CTX_PARAM, int pixel, int m, int k)
  *             (k 0..2: outward boundary normal where the camera ray enters medium m;
  *             zero when it does not enter), float lu_k_afm_surface(LU_CTX_PARAM, int m, int k)
@@ -243,7 +243,20 @@ LU_FN vec3 lu_k_afm_transmittance(LU_CTX_PARAM, lu_k_afm_params P, int l, vec3 x
 }
 
 #ifndef LU_K_AFM_MAP_ONLY
+LU_FN lu_k_afm_params lu_k_afm_params_get(LU_CTX_PARAM) {
+    lu_k_afm_params P;
+    P.res = lu_k_afm_param(LU_CTX, 0);
+    P.coefs = lu_k_afm_param(LU_CTX, 1);
+    P.samples = lu_k_afm_param(LU_CTX, 2);
+    P.channels = lu_k_afm_param(LU_CTX, 3);
+    return P;
+}
+
+/* Include this file, not lu_raymarch.h, first: the march must see the hook.
+ * (Only a compile check that includes every kernel reaches the #else.) */
+#ifndef LU_RAYMARCH_H
 #define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_afm_transmittance(LU_CTX, lu_k_afm_params_get(LU_CTX), l, x)
+#endif
 #include "lu_raymarch.h"
 
 /* Light reflected by the boundaries of bounded media where the camera ray

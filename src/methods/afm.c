@@ -63,14 +63,11 @@ static inline float lu_k_afm_surface(const struct lu_k_ctx *c, int m, int k) {
     return c->surfaces[m * LU_AFM_SURFACE_FLOATS + k];
 }
 
-static inline struct lu_k_afm_params lu_k_afm_params_get(const struct lu_k_ctx *c);
+static inline int lu_k_afm_param(const struct lu_k_ctx *c, int i) {
+    return i == 0 ? c->res : i == 1 ? c->coefs : i == 2 ? c->samples : c->channels;
+}
 
 #include "kernels/lu_afm.h"
-
-static inline lu_k_afm_params lu_k_afm_params_get(const struct lu_k_ctx *c) {
-    lu_k_afm_params P = {c->res, c->coefs, c->samples, c->channels};
-    return P;
-}
 
 static void ctx_set_map(struct lu_k_ctx *c, const lu_afm_map *map) {
     c->map = map;
