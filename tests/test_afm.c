@@ -319,10 +319,88 @@ static void test_blocker_shadow(void) {
     lu_scene_destroy(&s);
 }
 
+/* The GPU passes (afm_build.comp, afm_render.comp) against the CPU twin on
+ * scenes covering opaque objects + spot light (smoke_box), a bounded medium
+ * with Fresnel and boundary reflection under two point lights
+ * (homogeneous_sphere), and coloured extinction (layered_cube, 3 channels). */
+static void test_gpu_matches_cpu(void) {
+    const char *scenes[] = {"smoke_box", "homogeneous_sphere", "layered_cube"};
+    for (int i = 0; i < 3; i++) {
+        char path[512];
+        snprintf(path, sizeof path, LU_SOURCE_DIR "/scenes/%s.json", scenes[i]);
+        lu_scene s;
+        lu_error err = {0};
+        lu_result r = lu_scene_load(path, &s, &err);
+        CHECK_OK(r, &err);
+        if (r != LU_OK) continue;
+        s.camera.width = s.camera.height = 40;
+        lu_image cpu, gpu;
+        if (render(&s, "afm", LU_BACKEND_CPU, &cpu, "afm.map_res=64") &&
+            render(&s, "afm", LU_BACKEND_GPU, &gpu, "afm.map_res=64")) {
+            double e = rel_l2(&gpu, &cpu);
+            fprintf(stderr, "  %s 40x40: GPU vs CPU rel-L2 %.2e\n", scenes[i], e);
+            CHECK(e <= 1e-3);
+            lu_image_destroy(&gpu);
+        }
+        lu_image_destroy(&cpu);
+        lu_scene_destroy(&s);
+    }
+}
+
+/* The GPU map build (afm_build.comp) against the CPU build of the same views. */
+static void test_gpu_map_matches_cpu(const char *json_path) {
+    lu_scene s;
+    lu_error err = {0};
+    lu_result r = lu_scene_load(json_path, &s, &err);
+    CHECK_OK(r, &err);
+    if (r != LU_OK) return;
+    lu_media_rays mr;
+    lu_afm_map map;
+    lu_k_medium km[8];
+    lu_k_light kl[8];
+    CHECK_OK(lu_media_rays_init(&mr, &s, 16, false, &err), &err);
+    for (int m = 0; m < s.medium_count; m++) km[m] = lu_medium_to_kernel(&s.media[m]);
+    int nl = lu_scene_kernel_lights(&s, kl);
+    lu_afm_map_init(&map, &s, 32, 16, 64);
+    CHECK_OK(lu_afm_map_views(&map, &s, &mr, kl, nl, &err), &err);
+    CHECK_OK(lu_afm_map_build_cpu(&map, &s, km, &err), &err);
+    size_t n = lu_afm_map_texels(&map) * (size_t)lu_afm_map_stride(&map);
+    float *gpu_rec = calloc(n, sizeof(float));
+    lu_afm_gpu *g = NULL;
+    r = lu_afm_gpu_create(&s, &g, &err);
+    CHECK_OK(r, &err);
+    if (r == LU_OK) r = lu_afm_gpu_build_download(g, &s, &map, gpu_rec, &err);
+    CHECK_OK(r, &err);
+    if (r == LU_OK) {
+        double worst = 0;
+        size_t at = 0;
+        for (size_t i = 0; i < n; i++) {
+            double a = map.records[i], b = gpu_rec[i];
+            double e = fabs(a - b) / (fabs(a) > 1 ? fabs(a) : 1);
+            if (e > worst) worst = e, at = i;
+        }
+        fprintf(stderr, "  %s: %zu texels, GPU vs CPU map records: worst relative difference %.2e (float %zu of texel %zu)\n",
+                json_path, lu_afm_map_texels(&map), worst, at % lu_afm_map_stride(&map), at / lu_afm_map_stride(&map));
+        CHECK(worst < 1e-4);
+    }
+    lu_afm_gpu_destroy(g);
+    free(gpu_rec);
+    lu_afm_map_free(&map);
+    lu_media_rays_free(&mr);
+    lu_scene_destroy(&s);
+}
+
+static void test_gpu_maps(void) {
+    test_gpu_map_matches_cpu(LU_SOURCE_DIR "/scenes/layered_cube.json");
+    test_gpu_map_matches_cpu(LU_SOURCE_DIR "/scenes/smoke_glow.json");
+}
+
 int main(void) {
     RUN_TEST(test_dct_closed_forms);
     RUN_TEST(test_map_vs_exact);
     RUN_TEST(test_against_reference);
     RUN_TEST(test_blocker_shadow);
+    RUN_TEST(test_gpu_maps);
+    RUN_TEST(test_gpu_matches_cpu);
     TEST_EXIT();
 }

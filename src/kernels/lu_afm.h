@@ -51,7 +51,8 @@
  * the map lookup in place of its exact shadow-ray optical depth, plus the
  * boundary reflection of bounded media (Fresnel-weighted Blinn-Phong of the
  * boundary surface, lit through the maps), as the reference renders it. A
- * backend that only builds maps defines LU_K_AFM_MAP_ONLY. */
+ * backend that only builds maps defines LU_K_AFM_MAP_ONLY (no lookup or
+ * render hooks needed then). */
 #ifndef LU_AFM_H
 #define LU_AFM_H
 
@@ -72,6 +73,30 @@ struct lu_k_afm_params {
     int channels;   /* C: 1 (grey extinction) or 3 */
 };
 LU_TYPEDEF(lu_k_afm_params)
+
+/* One term of the cosine series by the Chebyshev recurrence
+ * cos((k+1)a) = 2 cos(a) cos(ka) - cos((k-1)a) (one cosine per sample):
+ * the build adds f cos(ka) to acc[k], the lookups add c_k cos(ka) to f/g.
+ * Loops over k run these four at a time: llvmpipe stops a shader
+ * invocation's loops after 65535 iterations in total, which a 500-step
+ * march with two lights and 16 coefficients would otherwise pass. */
+#define LU_K_AFM_ACC_TERM(k) \
+    acc[k] = lu_v3_madd(acc[k], f, cur); \
+    next = 2.0f * c1 * cur - prev; \
+    prev = cur; \
+    cur = next;
+#define LU_K_AFM_TERM3(k) \
+    f = lu_v3_madd(f, lu_v3(lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + 3 * (k)), \
+                            lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + 3 * (k) + 1), \
+                            lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + 3 * (k) + 2)), cur); \
+    next = 2.0f * c1 * cur - prev; \
+    prev = cur; \
+    cur = next;
+#define LU_K_AFM_TERM1(k) \
+    g += lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + (k)) * cur; \
+    next = 2.0f * c1 * cur - prev; \
+    prev = cur; \
+    cur = next;
 
 LU_FN int lu_k_afm_stride(lu_k_afm_params P) { return LU_K_AFM_HEADER + P.coefs * P.channels; }
 
@@ -137,12 +162,14 @@ LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview 
          * cos((k+1)a) = 2 cos(a) cos(ka) - cos((k-1)a): one cosine per sample. */
         float c1 = lu_cos(LU_K_PI * u);
         float prev = 1.0f, cur = c1;
+        float next = 0.0f;
         acc[0] = lu_v3_add(acc[0], f);
-        for (int k = 1; k < P.coefs; k++) {
-            acc[k] = lu_v3_madd(acc[k], f, cur);
-            float next = 2.0f * c1 * cur - prev;
-            prev = cur;
-            cur = next;
+        int k = 1;
+        for (; k + 3 < P.coefs; k += 4) {
+            LU_K_AFM_ACC_TERM(k) LU_K_AFM_ACC_TERM(k + 1) LU_K_AFM_ACC_TERM(k + 2) LU_K_AFM_ACC_TERM(k + 3)
+        }
+        for (; k < P.coefs; k++) {
+            LU_K_AFM_ACC_TERM(k)
         }
     }
     /* The rest of the way to K_out, for the tail. */
@@ -176,6 +203,7 @@ LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview 
     }
 }
 
+#ifndef LU_K_AFM_MAP_ONLY
 /* ---- lookup ---- */
 
 /* Transmittance stored in `texel` at depth `depth` along its light ray. */
@@ -188,25 +216,25 @@ LU_FN vec3 lu_k_afm_texel_eval(LU_CTX_PARAM, lu_k_afm_params P, int texel, float
     if (depth >= k_out) return tail;
     float s = (depth - k_in) / (k_out - k_in);
     float c1 = lu_cos(LU_K_PI * s);
-    float prev = 1.0f, cur = c1;
+    float prev = 1.0f, cur = c1, next = 0.0f;
     vec3 f;
     if (P.channels == 3) {
         f = lu_v3(lu_k_afm_fetch(LU_CTX, base, 6), lu_k_afm_fetch(LU_CTX, base, 7), lu_k_afm_fetch(LU_CTX, base, 8));
-        for (int k = 1; k < P.coefs; k++) {
-            int o = LU_K_AFM_HEADER + 3 * k;
-            f = lu_v3_madd(f, lu_v3(lu_k_afm_fetch(LU_CTX, base, o), lu_k_afm_fetch(LU_CTX, base, o + 1),
-                                    lu_k_afm_fetch(LU_CTX, base, o + 2)), cur);
-            float next = 2.0f * c1 * cur - prev;
-            prev = cur;
-            cur = next;
+        int k = 1;
+        for (; k + 3 < P.coefs; k += 4) {
+            LU_K_AFM_TERM3(k) LU_K_AFM_TERM3(k + 1) LU_K_AFM_TERM3(k + 2) LU_K_AFM_TERM3(k + 3)
+        }
+        for (; k < P.coefs; k++) {
+            LU_K_AFM_TERM3(k)
         }
     } else {
         float g = lu_k_afm_fetch(LU_CTX, base, 6);
-        for (int k = 1; k < P.coefs; k++) {
-            g += lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + k) * cur;
-            float next = 2.0f * c1 * cur - prev;
-            prev = cur;
-            cur = next;
+        int k = 1;
+        for (; k + 3 < P.coefs; k += 4) {
+            LU_K_AFM_TERM1(k) LU_K_AFM_TERM1(k + 1) LU_K_AFM_TERM1(k + 2) LU_K_AFM_TERM1(k + 3)
+        }
+        for (; k < P.coefs; k++) {
+            LU_K_AFM_TERM1(k)
         }
         f = lu_v3s(g);
     }
@@ -228,21 +256,17 @@ LU_FN vec3 lu_k_afm_transmittance(LU_CTX_PARAM, lu_k_afm_params P, int l, vec3 x
     float x0 = lu_floor(fx), y0 = lu_floor(fy);
     float ax = fx - x0, ay = fy - y0;
     int view_base = (first + face) * P.res * P.res;
-    vec3 T = lu_v3s(0.0f);
-    for (int jj = 0; jj < 2; jj++) {
-        int yj = lu_int(lu_clamp(y0 + lu_float(jj), 0.0f, lu_float(P.res - 1)));
-        float wy = jj == 1 ? ay : 1.0f - ay;
-        for (int ii = 0; ii < 2; ii++) {
-            float w = (ii == 1 ? ax : 1.0f - ax) * wy;
-            if (w <= 0.0f) continue;
-            int xi = lu_int(lu_clamp(x0 + lu_float(ii), 0.0f, lu_float(P.res - 1)));
-            T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, view_base + yj * P.res + xi, uvd.z), w);
-        }
-    }
+    float hi = lu_float(P.res - 1);
+    int xa = lu_int(lu_clamp(x0, 0.0f, hi)), xb = lu_int(lu_clamp(x0 + 1.0f, 0.0f, hi));
+    int ya = view_base + P.res * lu_int(lu_clamp(y0, 0.0f, hi)), yb = view_base + P.res * lu_int(lu_clamp(y0 + 1.0f, 0.0f, hi));
+    /* Written out, not looped: see LU_K_AFM_TERM1. */
+    vec3 T = lu_v3_scale(lu_k_afm_texel_eval(LU_CTX, P, ya + xa, uvd.z), (1.0f - ax) * (1.0f - ay));
+    if (ax > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, ya + xb, uvd.z), ax * (1.0f - ay));
+    if (ay > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, yb + xa, uvd.z), (1.0f - ax) * ay);
+    if (ax > 0.0f && ay > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, yb + xb, uvd.z), ax * ay);
     return T;
 }
 
-#ifndef LU_K_AFM_MAP_ONLY
 LU_FN lu_k_afm_params lu_k_afm_params_get(LU_CTX_PARAM) {
     lu_k_afm_params P;
     P.res = lu_k_afm_param(LU_CTX, 0);

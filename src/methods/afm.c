@@ -179,19 +179,19 @@ lu_result lu_afm_map_views(lu_afm_map *map, const lu_scene *scene, const lu_medi
         map->view_table[2 * k] = map->view_count;
         map->view_table[2 * k + 1] = lv.count;
         for (int v = 0; v < lv.count; v++) {
+            /* Cube faces get a guard band of 1.5 texels: a point near a face
+             * edge is then interpolated from its own face's texels, so either
+             * face answers alike where rounding could pick one or the other. */
+            if (lv.count == 6) {
+                lv.view[v].extent_u *= 1.0f + 3.0f / (float)map->res;
+                lv.view[v].extent_v *= 1.0f + 3.0f / (float)map->res;
+            }
             lu_lightview_pack(&lv.view[v], map->views_packed + (size_t)map->view_count * LU_RM_VIEW_FLOATS);
             map->views[map->view_count++] = lv.view[v];
         }
         k++;
     }
     size_t texels = lu_afm_map_texels(map);
-    size_t need = (texels ? texels : 1u) * (size_t)lu_afm_map_stride(map);
-    if (need > map->records_cap) {
-        free(map->records);
-        map->records = malloc(need * sizeof(float));
-        map->records_cap = map->records ? need : 0;
-        if (!map->records) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for %zu map texels", texels);
-    }
     if (map->bounded) {
         size_t ls = (texels ? texels : 1u) * (size_t)map->nm * LU_AFM_LSPAN_FLOATS;
         if (ls > map->lspans_cap) {
@@ -226,8 +226,22 @@ static void build_rows(void *vctx, int64_t begin, int64_t end, int thread) {
     }
 }
 
+int lu_afm_view_count(const lu_scene *scene) {
+    int n = 0;
+    for (int l = 0; l < scene->light_count; l++)
+        n += scene->lights[l].type == LU_LIGHT_POINT ? 6 : scene->lights[l].type == LU_LIGHT_ENVIRONMENT ? 0 : 1;
+    return n;
+}
+
 lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km, lu_error *err) {
-    (void)err;
+    size_t texels = lu_afm_map_texels(map);
+    size_t need = (texels ? texels : 1u) * (size_t)lu_afm_map_stride(map);
+    if (need > map->records_cap) {
+        free(map->records);
+        map->records = malloc(need * sizeof(float));
+        map->records_cap = map->records ? need : 0;
+        if (!map->records) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for %zu map texels", texels);
+    }
     build_job j;
     memset(&j, 0, sizeof j);
     j.ctx.media = scene->media;
@@ -317,6 +331,33 @@ static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_bac
     st->surfaces = calloc(nm * LU_AFM_SURFACE_FLOATS, sizeof(float));
     if ((!st->km || !st->surfaces) && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_afm_gpu_create(scene, &st->gpu, err);
+    if (r == LU_OK && backend == LU_BACKEND_GPU) {
+        /* The records of every view live in one storage buffer: halve the
+         * default resolution until they fit the device's limit. */
+        bool loop_cap = false;
+        size_t max = lu_afm_gpu_limits(st->gpu, &loop_cap), views = (size_t)lu_afm_view_count(scene);
+        size_t stride = (size_t)lu_afm_map_stride(&st->map) * sizeof(float);
+        while (params[P_MAP_RES] == 0 && st->map.res > 16 && views * st->map.res * st->map.res * stride > max)
+            st->map.res /= 2;
+        size_t bytes = views * st->map.res * st->map.res * stride;
+        if (bytes > max)
+            r = lu_fail(err, LU_ERR_LIMIT,
+                        "afm: maps of %zu views at map_res = %d need %zu bytes, over the GPU's %zu-byte storage buffer "
+                        "limit (lower afm.map_res or afm.coefs)",
+                        views, st->map.res, bytes, max);
+        /* Loop iterations of one invocation, generously counted: the march
+         * (steps x lights x (series in fours + PCF and medium loops)) and
+         * the build (samples x (series in fours + medium loops) + DDA). */
+        int quads = (st->map.coefs + 2) / 4 + 1, nlights = lu_afm_view_count(scene) ? scene->light_count : 0;
+        double march = (double)st->steps * (1 + nlights * (4 * quads + 10 + 2 * scene->medium_count));
+        double build = (double)st->map.samples * (quads + 2 + 2 * scene->medium_count) + 1024.0;
+        if (r == LU_OK && loop_cap && (march > 65000 || build > 65000))
+            r = lu_fail(err, LU_ERR_LIMIT,
+                        "afm: on llvmpipe a shader invocation stops after 65535 loop iterations; %s needs about %.0f "
+                        "(lower afm.%s or afm.coefs, or use the CPU backend)",
+                        march > 65000 ? "the view march" : "the map build", march > 65000 ? march : build,
+                        march > 65000 ? "steps" : "samples");
+    }
     if (r != LU_OK) {
         afm_destroy(st);
         return r;

@@ -43,6 +43,9 @@ void lu_afm_map_free(lu_afm_map *map);
 lu_result lu_afm_map_views(lu_afm_map *map, const lu_scene *scene, const lu_media_rays *mr, const lu_k_light *kl,
                            int nl, lu_error *err);
 
+/* Views (all lights) the scene's non-environment lights need: 6 per point light. */
+int lu_afm_view_count(const lu_scene *scene);
+
 /* The map's records on the CPU (kernel lu_k_afm_build_texel per texel). */
 lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km, lu_error *err);
 
@@ -68,5 +71,13 @@ lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *e
 lu_result lu_afm_gpu_render(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_gpu_frame *f, lu_image *out,
                             lu_error *err);
 void lu_afm_gpu_destroy(lu_afm_gpu *g);
+/* Builds only the maps (afm_build.comp) for map's views and downloads the
+ * records into `records` (lu_afm_map_texels * lu_afm_map_stride floats). */
+lu_result lu_afm_gpu_build_download(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_map *map, float *records,
+                                    lu_error *err);
+/* The device's largest storage buffer (bytes), which bounds the map's
+ * records; *loop_cap: the device is llvmpipe, whose shader invocations stop
+ * looping after 65535 loop iterations in total. */
+size_t lu_afm_gpu_limits(const lu_afm_gpu *g, bool *loop_cap);
 
 #endif
