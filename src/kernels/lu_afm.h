@@ -44,6 +44,10 @@
  *             (k 0..2: outward boundary normal where the camera ray enters medium m;
  *             zero when it does not enter), float lu_k_afm_surface(LU_CTX_PARAM, int m, int k)
  *             (medium m's boundary surface: 0..2 albedo, 3 shininess, 4..6 specular),
+ *           float lu_k_afm_surface_vis(LU_CTX_PARAM, int pixel, int l)
+ *             (opaque visibility of light l at the pixel's surface hit, traced exactly
+ *             by the CPU: the seed reads the shadow map there, which leaks or
+ *             bites at lit/shadowed edges on every pixel they cross),
  *           and the hooks of lu_raymarch.h.
  * Texel index: (view * res + j) * res + i.
  *
@@ -280,6 +284,7 @@ LU_FN lu_k_afm_params lu_k_afm_params_get(LU_CTX_PARAM) {
  * (Only a compile check that includes every kernel reaches the #else.) */
 #ifndef LU_RAYMARCH_H
 #define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_afm_transmittance(LU_CTX, lu_k_afm_params_get(LU_CTX), l, x)
+#define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_afm_surface_vis(LU_CTX, pixel, l)
 #endif
 #include "lu_raymarch.h"
 

@@ -115,6 +115,14 @@ LU_FN vec3 lu_k_rm_transmittance(LU_CTX_PARAM, vec3 x, vec3 w, float dist) {
 #define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist)
 #endif
 
+/* Opaque visibility of light l at the camera ray's surface hit: the shadow
+ * map here; afm defines LU_K_RM_SURFACE_VIS(l, pixel, x, n) first to read
+ * exact per-pixel visibility the CPU traced (a shadow map cannot be exact at
+ * a lit/shadowed edge seen in a pixel). */
+#ifndef LU_K_RM_SURFACE_VIS
+#define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_rm_visibility(LU_CTX, l, x, n, P.map_res)
+#endif
+
 /* Shadow-map visibility of light l at x (n: surface normal, or zero in a medium). */
 LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     int count = lu_k_rm_view_count(LU_CTX, l);
@@ -211,7 +219,7 @@ LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, v
             lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
             vec3 f = lu_k_blinn_phong(hit.albedo, hit.specular, hit.shininess, hit.n, wo, ls.wl);
             if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-            float vis = lu_k_rm_visibility(LU_CTX, l, x, hit.n, P.map_res);
+            float vis = LU_K_RM_SURFACE_VIS(l, pixel, x, hit.n);
             if (vis <= 0.0f) continue;
             vec3 tr = LU_K_RM_LIGHT_TR(l, x, ls);
             end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));

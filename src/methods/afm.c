@@ -41,6 +41,7 @@ struct lu_k_ctx {
     int res, coefs, samples, channels, stride;   /* lu_k_afm_params (defined by the kernel below) */
     const float *cam_normals;
     const float *surfaces;
+    const float *surface_vis;
 };
 
 #include "methods/raymarch_hooks.h"
@@ -58,6 +59,9 @@ static inline int lu_k_afm_view_count(const struct lu_k_ctx *c, int l) { return 
 static inline lu_k_lightview lu_k_afm_view(const struct lu_k_ctx *c, int v) { return c->map->views[v]; }
 static inline float lu_k_afm_cam_normal(const struct lu_k_ctx *c, int pixel, int m, int k) {
     return c->cam_normals[((size_t)pixel * c->nm + m) * LU_MR_NORMAL_FLOATS + k];
+}
+static inline float lu_k_afm_surface_vis(const struct lu_k_ctx *c, int pixel, int l) {
+    return c->surface_vis[(size_t)pixel * c->nl + l];
 }
 static inline float lu_k_afm_surface(const struct lu_k_ctx *c, int m, int k) {
     return c->surfaces[m * LU_AFM_SURFACE_FLOATS + k];
@@ -413,6 +417,7 @@ static lu_result afm_render(void *state, const lu_scene *scene, lu_image *out, l
     int nl = lu_scene_kernel_lights(scene, kl);
     lu_result r = lu_media_rays_camera(&st->mr, scene, st->cam, err);
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, scene, kl, nl, err);
+    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, scene, st->cam, kl, nl, st->eps, err);
     if (r == LU_OK) r = lu_afm_map_views(&st->map, scene, &st->mr, kl, nl, err);
     if (r != LU_OK) return r;
 
@@ -453,6 +458,7 @@ static lu_result afm_render(void *state, const lu_scene *scene, lu_image *out, l
     ctx_set_map(&st->kctx, &st->map);
     st->kctx.cam_normals = st->mr.normals;
     st->kctx.surfaces = st->surfaces;
+    st->kctx.surface_vis = st->mr.surface_vis;
     lu_parallel_for(c->height, 1, render_rows, st, NULL);
     return LU_OK;
 }

@@ -12,7 +12,7 @@
 #include "methods/gpu_scene.h"
 
 /* render-pass buffers after the shared raymarch ones (lu_raymarch_gpu.glsl) */
-enum { R_HITS, R_SPANS, R_VIEWS, R_TABLE, R_SHADOW, R_NORMALS, R_AVIEWS, R_ATABLE, R_RECORDS, R_SURFACES, R_OUT, R_COUNT };
+enum { R_HITS, R_SPANS, R_VIEWS, R_TABLE, R_SHADOW, R_NORMALS, R_AVIEWS, R_ATABLE, R_RECORDS, R_SURFACES, R_OUT, R_SURFVIS, R_COUNT };
 /* build-pass bindings (relative to LU_SCENE_BINDING_FREE) */
 enum { B_AVIEWS, B_LSPANS, B_RECORDS };
 
@@ -130,6 +130,8 @@ lu_result lu_afm_gpu_render(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_g
     if (r == LU_OK) r = lu_gpu_buffer_bind(g->buf[R_RECORDS], LU_SCENE_BINDING_FREE + R_RECORDS, err);
     if (r == LU_OK) r = put(g, &g->buf[R_SURFACES], f->surfaces, nm * LU_AFM_SURFACE_FLOATS * sizeof(float), R_SURFACES, err);
     if (r == LU_OK) r = put(g, &g->buf[R_OUT], NULL, pixels * 3 * sizeof(float), R_OUT, err);
+    if (r == LU_OK)
+        r = put(g, &g->buf[R_SURFVIS], mr->surface_vis, pixels * (size_t)f->nl * sizeof(float), R_SURFVIS, err);
     if (r != LU_OK) return r;
     lu_gpu_program *p = g->render;
     set_map_uniforms(p, map);

@@ -51,6 +51,7 @@ void lu_media_rays_free(lu_media_rays *mr) {
     free(mr->hits);
     free(mr->spans);
     free(mr->normals);
+    free(mr->surface_vis);
     free(mr->views);
     free(mr->views_packed);
     free(mr->view_table);
@@ -149,6 +150,59 @@ lu_result lu_media_rays_camera(lu_media_rays *mr, const lu_scene *scene, lu_k_ca
     lu_parallel_for(c->height, 4, camera_rows, &j, NULL);
     mr->hits_cam = *c;
     mr->hits_valid = true;
+    mr->hits_version++;
+    return LU_OK;
+}
+
+typedef struct vis_job {
+    lu_media_rays *mr;
+    const lu_scene *scene;
+    lu_k_camera cam;
+    const lu_k_light *kl;
+    int nl;
+    float eps;
+} vis_job;
+
+static void vis_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    (void)thread;
+    vis_job *j = ctx;
+    const lu_camera *c = &j->scene->camera;
+    for (int64_t y = begin; y < end; y++) {
+        for (int x = 0; x < c->width; x++) {
+            size_t px = (size_t)y * c->width + x;
+            const float *h = j->mr->hits + px * LU_MR_HIT_FLOATS;
+            float *v = j->mr->surface_vis + px * (size_t)j->nl;
+            for (int l = 0; l < j->nl; l++) v[l] = 1.0f;
+            if (h[3] < 0.0f || !j->mr->opaque) continue;
+            lu_vec3 d = lu_k_camera_dir(j->cam, (float)x + 0.5f, (float)y + 0.5f), ng;
+            memcpy(&ng, h + 4, 12);
+            lu_vec3 p = lu_v3_madd(lu_v3_madd(c->position, d, h[3]), ng, j->eps);
+            for (int l = 0; l < j->nl; l++) {
+                lu_k_light_sample ls = lu_k_light_arrive(j->kl[l], p);
+                v[l] = lu_accel_occluded(j->mr->opaque, p, ls.wl, 0.0f, ls.dist) ? 0.0f : 1.0f;
+            }
+        }
+    }
+}
+
+lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_scene *scene, lu_k_camera cam, const lu_k_light *kl,
+                                    int nl, float eps, lu_error *err) {
+    const lu_camera *c = &scene->camera;
+    size_t n = (size_t)c->width * c->height * (size_t)(nl ? nl : 1);
+    if (n > mr->surface_vis_cap) {
+        free(mr->surface_vis);
+        mr->surface_vis = malloc(n * sizeof(float));
+        mr->surface_vis_cap = mr->surface_vis ? n : 0;
+        mr->vis_valid = false;
+        if (!mr->surface_vis) return lu_fail(err, LU_ERR_NOMEM, "out of memory for surface visibility");
+    }
+    if (mr->vis_valid && mr->vis_hits_version == mr->hits_version && mr->vis_maps_version == mr->maps_version)
+        return LU_OK;
+    vis_job j = {mr, scene, cam, kl, nl, eps};
+    lu_parallel_for(c->height, 4, vis_rows, &j, NULL);
+    mr->vis_valid = true;
+    mr->vis_hits_version = mr->hits_version;
+    mr->vis_maps_version = mr->maps_version;
     return LU_OK;
 }
 

@@ -38,6 +38,11 @@ typedef struct lu_media_rays {
     size_t pixels_cap;
     lu_camera hits_cam;
     bool hits_valid;
+    /* opaque visibility of each light at each pixel's surface hit (optional) */
+    float *surface_vis;          /* pixels * nl */
+    size_t surface_vis_cap;
+    unsigned hits_version, vis_hits_version, vis_maps_version;
+    bool vis_valid;
     /* light views and shadow maps, rebuilt when the lights change */
     int shadow_res;
     lu_k_lightview *views;
@@ -62,6 +67,14 @@ lu_result lu_media_rays_camera(lu_media_rays *mr, const lu_scene *scene, lu_k_ca
 /* Light views and shadow maps for the kernel lights kl[0..nl) (scene order,
  * environment lights left out). */
 lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_scene *scene, const lu_k_light *kl, int nl, lu_error *err);
+
+/* Exact opaque visibility (Embree occlusion) of the kernel lights kl[0..nl)
+ * at every camera ray's surface hit, offset by eps along the geometric
+ * normal: surface_vis[pixel * nl + l] in {0, 1} (1 where the ray hits no
+ * surface). Call after lu_media_rays_camera and lu_media_rays_maps (same
+ * lights); kept while neither changes. */
+lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_scene *scene, lu_k_camera cam, const lu_k_light *kl,
+                                    int nl, float eps, lu_error *err);
 
 /* The first span of each medium along o + t d, t in [0, t_end]: sp[2m],
  * sp[2m+1] (empty: sp[2m+1] <= sp[2m]; unbounded media: [0, LU_K_FAR]).

@@ -14,6 +14,7 @@ layout(std430, binding = LU_RM_BINDING_NEXT + 2) readonly buffer AfmTable { int 
 layout(std430, binding = LU_RM_BINDING_NEXT + 3) readonly buffer AfmRecords { float afm_records[]; };
 layout(std430, binding = LU_RM_BINDING_NEXT + 4) readonly buffer AfmSurfaces { float afm_surfaces[]; };
 layout(std430, binding = LU_RM_BINDING_NEXT + 5) writeonly buffer Out { float afm_out[]; };
+layout(std430, binding = LU_RM_BINDING_NEXT + 6) readonly buffer SurfaceVis { float afm_surface_vis[]; };
 
 uniform float u_step;
 uniform float u_eps;
@@ -35,6 +36,7 @@ lu_k_lightview lu_k_afm_view(LU_CTX_PARAM, int v) {
 float lu_k_afm_cam_normal(LU_CTX_PARAM, int pixel, int m, int k) {
     return afm_cam_normals[(pixel * lu_scene_medium_count() + m) * 6 + k];
 }
+float lu_k_afm_surface_vis(LU_CTX_PARAM, int pixel, int l) { return afm_surface_vis[pixel * lu_scene_light_count() + l]; }
 float lu_k_afm_surface(LU_CTX_PARAM, int m, int k) { return afm_surfaces[m * 8 + k]; }
 /* Build-only hooks, unused by the render path. */
 float lu_k_afm_lspan(LU_CTX_PARAM, int texel, int m, int k) { return 0.0; }
