@@ -45,7 +45,7 @@ if has 2; then
     echo "$header" >"$OUT/bench_gpu.csv.tmp"
     for s in $SCENES; do
         echo "== gpu $s" >&2
-        "$L" bench "scenes/$s.json" --methods afm --backends gpu --size "$SIZE" --frames 1 --warmup 1 \
+        "$L" bench "scenes/$s.json" --methods afm --backends gpu --size "$SIZE" --frames 1 --warmup 0 \
             --reference "$TRUTH/$s/truth.exr" --save-images "$TRUTH/$s/gpu" --csv "$TRUTH/$s.gpu.csv"
         tail -n +2 "$TRUTH/$s.gpu.csv" >>"$OUT/bench_gpu.csv.tmp"
         "$L" compare "$TRUTH/$s/gpu/afm-gpu.exr" "$TRUTH/$s/afm-cpu.exr" | awk -v s="$s" '$1 == "rel_l2" { print "  gpu vs cpu " s ": " $2 }' >&2

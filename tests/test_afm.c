@@ -256,17 +256,23 @@ static double rel_l2(const lu_image *a, const lu_image *b) {
     return m.rel_l2;
 }
 
+/* A bundled scene at size x size pixels. */
+static bool load_bundled(const char *name, int size, lu_scene *s) {
+    char path[512];
+    snprintf(path, sizeof path, LU_SOURCE_DIR "/scenes/%s.json", name);
+    lu_error err = {0};
+    lu_result r = lu_scene_load(path, s, &err);
+    CHECK_OK(r, &err);
+    if (r != LU_OK) return false;
+    s->camera.width = s->camera.height = size;
+    return true;
+}
+
 static void test_against_reference(void) {
     const char *scenes[] = {"smoke_box", "homogeneous_sphere"};
     for (int i = 0; i < 2; i++) {
-        char path[512];
-        snprintf(path, sizeof path, LU_SOURCE_DIR "/scenes/%s.json", scenes[i]);
         lu_scene s;
-        lu_error err = {0};
-        lu_result r = lu_scene_load(path, &s, &err);
-        CHECK_OK(r, &err);
-        if (r != LU_OK) continue;
-        s.camera.width = s.camera.height = 64;
+        if (!load_bundled(scenes[i], 64, &s)) continue;
         lu_image ref, afm;
         if (render(&s, "reference", LU_BACKEND_CPU, &ref, NULL) && render(&s, "afm", LU_BACKEND_CPU, &afm, NULL)) {
             double e = rel_l2(&afm, &ref);
@@ -326,14 +332,8 @@ static void test_blocker_shadow(void) {
 static void test_gpu_matches_cpu(void) {
     const char *scenes[] = {"smoke_box", "homogeneous_sphere", "layered_cube"};
     for (int i = 0; i < 3; i++) {
-        char path[512];
-        snprintf(path, sizeof path, LU_SOURCE_DIR "/scenes/%s.json", scenes[i]);
         lu_scene s;
-        lu_error err = {0};
-        lu_result r = lu_scene_load(path, &s, &err);
-        CHECK_OK(r, &err);
-        if (r != LU_OK) continue;
-        s.camera.width = s.camera.height = 40;
+        if (!load_bundled(scenes[i], 40, &s)) continue;
         lu_image cpu, gpu;
         if (render(&s, "afm", LU_BACKEND_CPU, &cpu, "afm.map_res=64") &&
             render(&s, "afm", LU_BACKEND_GPU, &gpu, "afm.map_res=64")) {

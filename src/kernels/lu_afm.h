@@ -109,6 +109,27 @@ LU_FN float lu_k_dct_norm(int k, int samples) { return (k == 0 ? 1.0f : 2.0f) / 
 
 /* ---- map build ---- */
 
+/* sigma_t-weighted optical depth of every medium over (t0, t1] of the
+ * texel's light ray, each clipped to its box and boundary span (exact per
+ * cell, lu_march.h). */
+LU_FN vec3 lu_k_afm_tau(LU_CTX_PARAM, int texel, lu_k_lightray ray, float t0, float t1) {
+    vec3 tau = lu_v3s(0.0f);
+    int nm = lu_k_medium_count(LU_CTX);
+    for (int m = 0; m < nm; m++) {
+        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+        float lo = lu_k_afm_lspan(LU_CTX, texel, m, 0), hi = lu_k_afm_lspan(LU_CTX, texel, m, 1);
+        float a = 0.0f, b = 0.0f;
+        if (!(hi > lo) ||
+            !lu_k_box_clip(md.bounds_lo, md.bounds_hi, ray.origin, ray.dir, lu_max(lo, t0), lu_min(hi, t1), LU_REF(a), LU_REF(b)))
+            continue;
+        float od = md.constant != 0 ? md.density_scale * (b - a)
+                                    : lu_k_optical_depth(LU_CTX, m, lu_k_medium_point(md, ray.origin),
+                                                         lu_k_medium_vector(md, ray.dir), a, b, md.max_pieces);
+        tau = lu_v3_madd(tau, lu_k_medium_sigma_t(md), od);
+    }
+    return tau;
+}
+
 /* Builds texel (i, j) of view vw (global index `texel`); returns nothing, writes
  * the record through lu_k_afm_store. */
 LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview vw, int texel, int i, int j) {
@@ -146,20 +167,12 @@ LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview 
         float t = k_in + u * len;
         float fres = 1.0f;
         for (int m = 0; m < nm; m++) {
-            lu_k_medium md = lu_k_medium_get(LU_CTX, m);
             float lo = lu_k_afm_lspan(LU_CTX, texel, m, 0), hi = lu_k_afm_lspan(LU_CTX, texel, m, 1);
             if (!(hi > lo)) continue;
             if (t > lo) fres *= lu_k_afm_lspan(LU_CTX, texel, m, 2);
             if (t > hi) fres *= lu_k_afm_lspan(LU_CTX, texel, m, 3);
-            float a = 0.0f, b = 0.0f;
-            if (!lu_k_box_clip(md.bounds_lo, md.bounds_hi, ray.origin, ray.dir, lu_max(lo, t_prev), lu_min(hi, t),
-                               LU_REF(a), LU_REF(b)))
-                continue;
-            float od = md.constant != 0 ? md.density_scale * (b - a)
-                                        : lu_k_optical_depth(LU_CTX, m, lu_k_medium_point(md, ray.origin),
-                                                             lu_k_medium_vector(md, ray.dir), a, b, md.max_pieces);
-            tau = lu_v3_madd(tau, lu_k_medium_sigma_t(md), od);
         }
+        tau = lu_v3_add(tau, lu_k_afm_tau(LU_CTX, texel, ray, t_prev, t));
         t_prev = t;
         vec3 f = lu_v3_scale(lu_v3_exp(lu_v3_neg(tau)), fres);
         /* f * cos(pi k u) for every k by the Chebyshev recurrence
@@ -177,18 +190,7 @@ LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview 
         }
     }
     /* The rest of the way to K_out, for the tail. */
-    for (int m = 0; m < nm; m++) {
-        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
-        float lo = lu_k_afm_lspan(LU_CTX, texel, m, 0), hi = lu_k_afm_lspan(LU_CTX, texel, m, 1);
-        float a = 0.0f, b = 0.0f;
-        if (!(hi > lo) || !lu_k_box_clip(md.bounds_lo, md.bounds_hi, ray.origin, ray.dir, lu_max(lo, t_prev), lu_min(hi, k_out),
-                                         LU_REF(a), LU_REF(b)))
-            continue;
-        float od = md.constant != 0 ? md.density_scale * (b - a)
-                                    : lu_k_optical_depth(LU_CTX, m, lu_k_medium_point(md, ray.origin),
-                                                         lu_k_medium_vector(md, ray.dir), a, b, md.max_pieces);
-        tau = lu_v3_madd(tau, lu_k_medium_sigma_t(md), od);
-    }
+    tau = lu_v3_add(tau, lu_k_afm_tau(LU_CTX, texel, ray, t_prev, k_out));
     vec3 tail = lu_v3_scale(lu_v3_exp(lu_v3_neg(tau)), fresnel_total);
     lu_k_afm_store(LU_CTX, texel, 0, k_in);
     lu_k_afm_store(LU_CTX, texel, 1, k_out);

@@ -162,39 +162,16 @@ lu_result lu_afm_map_views(lu_afm_map *map, const lu_scene *scene, const lu_medi
                            int nl, lu_error *err) {
     if (map->views_valid && nl == map->nl && memcmp(map->lights, kl, (size_t)nl * sizeof *kl) == 0) return LU_OK;
     size_t nls = nl ? (size_t)nl : 1u;
-    free(map->views);
-    free(map->views_packed);
-    free(map->view_table);
     free(map->lights);
-    map->views = calloc(nls * 6, sizeof *map->views);
-    map->views_packed = calloc(nls * 6 * LU_RM_VIEW_FLOATS, sizeof(float));
-    map->view_table = calloc(nls * 2, sizeof(int));
-    map->lights = malloc(nls * sizeof *map->lights);
-    map->view_count = 0;
     map->views_valid = false;
-    if (!map->views || !map->views_packed || !map->view_table || !map->lights)
-        return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for light views");
-    lu_aabb region = lu_scene_media_bounds(scene);
-    int k = 0;
-    for (int l = 0; l < scene->light_count; l++) {
-        if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) continue;
-        lu_lightviews lv;
-        lu_lightviews_for_light(&scene->lights[l], region, &lv);
-        map->view_table[2 * k] = map->view_count;
-        map->view_table[2 * k + 1] = lv.count;
-        for (int v = 0; v < lv.count; v++) {
-            /* Cube faces get a guard band of 1.5 texels: a point near a face
-             * edge is then interpolated from its own face's texels, so either
-             * face answers alike where rounding could pick one or the other. */
-            if (lv.count == 6) {
-                lv.view[v].extent_u *= 1.0f + 3.0f / (float)map->res;
-                lv.view[v].extent_v *= 1.0f + 3.0f / (float)map->res;
-            }
-            lu_lightview_pack(&lv.view[v], map->views_packed + (size_t)map->view_count * LU_RM_VIEW_FLOATS);
-            map->views[map->view_count++] = lv.view[v];
-        }
-        k++;
-    }
+    map->lights = malloc(nls * sizeof *map->lights);
+    if (!map->lights) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for light views");
+    /* Cube faces get a guard band of 1.5 texels: a point near a face edge is
+     * then interpolated from its own face's texels, so either face answers
+     * alike where rounding could pick one or the other. */
+    lu_result r = lu_lightviews_for_scene(scene, lu_scene_media_bounds(scene), 1.0f + 3.0f / (float)map->res,
+                                          &map->views, &map->views_packed, &map->view_table, &map->view_count, err);
+    if (r != LU_OK) return r;
     size_t texels = lu_afm_map_texels(map);
     if (map->bounded) {
         size_t ls = (texels ? texels : 1u) * (size_t)map->nm * LU_AFM_LSPAN_FLOATS;
@@ -374,13 +351,7 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     (void)thread;
     afm_state *st = ctx;
     const lu_camera *c = &st->scene->camera;
-    lu_k_rm_params R;
-    R.background = st->frame.background;
-    R.step = st->frame.step;
-    R.eps = st->frame.eps;
-    R.jitter = st->frame.jitter;
-    R.map_res = st->frame.map_res;
-    R.pad = 0;
+    lu_k_rm_params R = lu_raymarch_frame_params(&st->frame);
     for (int64_t y = begin; y < end; y++) {
         for (int x = 0; x < c->width; x++) {
             int px = (int)(y * c->width + x);
@@ -421,25 +392,8 @@ static lu_result afm_render(void *state, const lu_scene *scene, lu_image *out, l
     if (r == LU_OK) r = lu_afm_map_views(&st->map, scene, &st->mr, kl, nl, err);
     if (r != LU_OK) return r;
 
-    lu_aabb mb = lu_scene_media_bounds(scene);
-    float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;
     lu_raymarch_frame *f = &st->frame;
-    f->width = c->width;
-    f->height = c->height;
-    f->background = scene->background;
-    f->step = fmaxf(diag, 1e-6f) / (float)st->steps;
-    f->eps = st->eps;
-    f->jitter = st->jitter;
-    f->map_res = st->mr.shadow_res;
-    f->medium_count = scene->medium_count;
-    f->light_count = nl;
-    f->hits = st->mr.hits;
-    f->spans = st->mr.spans;
-    f->view_count = st->mr.view_count;
-    f->views = st->mr.views_packed;
-    f->view_table = st->mr.view_table;
-    f->shadow = st->mr.shadow;
-    f->maps_version = st->mr.maps_version;
+    lu_raymarch_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl);
     if (st->backend == LU_BACKEND_GPU) {
         lu_afm_gpu_frame g = {&st->mr, &st->map, st->surfaces, scene->background, f->step, f->eps, st->jitter,
                               st->mr.shadow_res, nl};

@@ -211,42 +211,26 @@ lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_scene *scene, lu
 lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_scene *scene, const lu_k_light *kl, int nl, lu_error *err) {
     if (mr->maps_valid && nl == mr->maps_nl && memcmp(mr->maps_lights, kl, (size_t)nl * sizeof *kl) == 0) return LU_OK;
     size_t nls = nl ? (size_t)nl : 1u;
-    free(mr->views);
-    free(mr->views_packed);
-    free(mr->view_table);
     free(mr->shadow);
     free(mr->maps_lights);
-    mr->views = calloc(nls * 6, sizeof *mr->views);
-    mr->views_packed = calloc(nls * 6 * LU_RM_VIEW_FLOATS, sizeof(float));
-    mr->view_table = calloc(nls * 2, sizeof(int));
-    mr->maps_lights = malloc(nls * sizeof *mr->maps_lights);
     mr->shadow = NULL;
-    mr->view_count = 0;
     mr->maps_valid = false;
-    if (!mr->views || !mr->views_packed || !mr->view_table || !mr->maps_lights)
-        return lu_fail(err, LU_ERR_NOMEM, "out of memory for light views");
-    /* Without opaque objects nothing casts: no views, visibility 1. */
+    mr->maps_lights = malloc(nls * sizeof *mr->maps_lights);
+    if (!mr->maps_lights) return lu_fail(err, LU_ERR_NOMEM, "out of memory for light views");
+    lu_result r = lu_lightviews_for_scene(scene, lu_scene_bounds(scene), 1.0f, &mr->views, &mr->views_packed,
+                                          &mr->view_table, &mr->view_count, err);
+    if (r != LU_OK) return r;
+    if (!mr->opaque) {
+        /* Without opaque objects nothing casts: no views, visibility 1. */
+        mr->view_count = 0;
+        memset(mr->view_table, 0, nls * 2 * sizeof *mr->view_table);
+    }
     if (mr->opaque) {
-        lu_aabb region = lu_scene_bounds(scene);
-        int k = 0;
-        for (int l = 0; l < scene->light_count; l++) {
-            if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) continue;
-            lu_lightviews lv;
-            lu_lightviews_for_light(&scene->lights[l], region, &lv);
-            mr->view_table[2 * k] = mr->view_count;
-            mr->view_table[2 * k + 1] = lv.count;
-            for (int v = 0; v < lv.count; v++) {
-                lu_lightview_pack(&lv.view[v], mr->views_packed + (size_t)mr->view_count * LU_RM_VIEW_FLOATS);
-                mr->views[mr->view_count++] = lv.view[v];
-            }
-            k++;
-        }
         size_t texels = (size_t)mr->shadow_res * mr->shadow_res;
         mr->shadow = malloc((mr->view_count ? (size_t)mr->view_count : 1u) * texels * sizeof(float));
         if (!mr->shadow) return lu_fail(err, LU_ERR_NOMEM, "out of memory for shadow maps");
         for (int v = 0; v < mr->view_count; v++) {
-            lu_result r =
-                lu_shadow_map_build(mr->opaque, &mr->views[v], mr->shadow_res, 1e30f, mr->shadow + v * texels, err);
+            r = lu_shadow_map_build(mr->opaque, &mr->views[v], mr->shadow_res, 1e30f, mr->shadow + v * texels, err);
             if (r != LU_OK) return r;
         }
     } else {

@@ -97,13 +97,7 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     (void)thread;
     rm_state *st = ctx;
     const lu_camera *c = &st->scene->camera;
-    lu_k_rm_params P;
-    P.background = st->frame.background;
-    P.step = st->frame.step;
-    P.eps = st->frame.eps;
-    P.jitter = st->frame.jitter;
-    P.map_res = st->frame.map_res;
-    P.pad = 0;
+    lu_k_rm_params P = lu_raymarch_frame_params(&st->frame);
     for (int64_t y = begin; y < end; y++) {
         for (int x = 0; x < c->width; x++) {
             int px = (int)(y * c->width + x);
@@ -135,29 +129,45 @@ static lu_result rm_render(void *state, const lu_scene *scene, lu_image *out, lu
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, scene, kl, nl, err);
     if (r != LU_OK) return r;
 
-    lu_aabb mb = lu_scene_media_bounds(scene);
-    float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;
     lu_raymarch_frame *f = &st->frame;
-    f->width = c->width;
-    f->height = c->height;
-    f->background = scene->background;
-    f->step = fmaxf(diag, 1e-6f) / (float)st->steps;
-    f->eps = st->eps;
-    f->jitter = st->jitter;
-    f->map_res = st->res;
-    f->medium_count = scene->medium_count;
-    f->light_count = nl;
-    f->hits = st->mr.hits;
-    f->spans = st->mr.spans;
-    f->view_count = st->mr.view_count;
-    f->views = st->mr.views_packed;
-    f->view_table = st->mr.view_table;
-    f->shadow = st->mr.shadow;
-    f->maps_version = st->mr.maps_version;
+    lu_raymarch_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl);
     if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, f, out, err);
     st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, nl, f, st->mr.views};
     lu_parallel_for(c->height, 1, render_rows, st, NULL);
     return LU_OK;
+}
+
+void lu_raymarch_frame_fill(lu_raymarch_frame *f, const lu_scene *scene, const lu_media_rays *mr, int steps, float eps,
+                            int jitter, int nl) {
+    lu_aabb mb = lu_scene_media_bounds(scene);
+    float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;
+    f->width = scene->camera.width;
+    f->height = scene->camera.height;
+    f->background = scene->background;
+    f->step = fmaxf(diag, 1e-6f) / (float)steps;
+    f->eps = eps;
+    f->jitter = jitter;
+    f->map_res = mr->shadow_res;
+    f->medium_count = scene->medium_count;
+    f->light_count = nl;
+    f->hits = mr->hits;
+    f->spans = mr->spans;
+    f->view_count = mr->view_count;
+    f->views = mr->views_packed;
+    f->view_table = mr->view_table;
+    f->shadow = mr->shadow;
+    f->maps_version = mr->maps_version;
+}
+
+lu_k_rm_params lu_raymarch_frame_params(const lu_raymarch_frame *f) {
+    lu_k_rm_params P;
+    P.background = f->background;
+    P.step = f->step;
+    P.eps = f->eps;
+    P.jitter = f->jitter;
+    P.map_res = f->map_res;
+    P.pad = 0;
+    return P;
 }
 
 const lu_method lu_method_raymarch = {

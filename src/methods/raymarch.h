@@ -28,6 +28,10 @@ typedef struct lu_raymarch_frame {
     unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
 } lu_raymarch_frame;
 
+/* The frame of one view march over mr's inputs: step = media-box diagonal / steps. */
+void lu_raymarch_frame_fill(lu_raymarch_frame *f, const lu_scene *scene, const lu_media_rays *mr, int steps, float eps,
+                            int jitter, int nl);
+
 typedef struct lu_raymarch_gpu lu_raymarch_gpu;
 
 lu_result lu_raymarch_gpu_create(const lu_scene *scene, lu_raymarch_gpu **out, lu_error *err);

@@ -9,6 +9,9 @@
 
 #include "methods/raymarch.h"
 
+/* lu_k_rm_params of a frame (defined in raymarch.c, after the kernel). */
+struct lu_k_rm_params lu_raymarch_frame_params(const lu_raymarch_frame *f);
+
 static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
     const lu_medium *med = &c->media[m];
     return med->kind == LU_DENSITY_CONSTANT ? med->constant : lu_grid_sample(&med->grid, p);
