@@ -61,6 +61,17 @@ int lu_lightviews_select(const lu_lightviews *v, lu_vec3 x) {
     return lu_k_lightview_inside(lu_k_lightview_project(v->view[i], x)) ? i : -1;
 }
 
+void lu_lightview_pack(const lu_k_lightview *w, float *p) {
+    memcpy(p, &w->origin, 12);
+    p[3] = (float)w->ortho;
+    memcpy(p + 4, &w->axis_u, 12);
+    p[7] = w->extent_u;
+    memcpy(p + 8, &w->axis_v, 12);
+    p[11] = w->extent_v;
+    memcpy(p + 12, &w->axis_w, 12);
+    p[15] = w->depth_far;
+}
+
 typedef struct shadow_job {
     const lu_accel *opaque;
     const lu_k_lightview *v;

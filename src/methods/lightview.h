@@ -22,6 +22,10 @@ void lu_lightviews_for_light(const lu_light *l, lu_aabb region, lu_lightviews *o
  * x is outside every view. */
 int lu_lightviews_select(const lu_lightviews *v, lu_vec3 x);
 
+/* v as 16 floats (std430 vec4[4]): origin + ortho, axis_u + extent_u,
+ * axis_v + extent_v, axis_w + depth_far; GLSL unpacks the same order. */
+void lu_lightview_pack(const lu_k_lightview *v, float *p);
+
 /* Shadow map of `opaque` (may be NULL: nothing casts) for view v: res x res
  * depths of the first hit along each texel's centre ray, or `far_value`
  * where nothing is hit. depth has res*res floats, row j = v index. */
