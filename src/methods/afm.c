@@ -302,6 +302,16 @@ static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_bac
     if (res < 4) r = lu_fail(err, LU_ERR_RANGE, "afm: map_res = %d is below 4 (0 picks the default)", res);
     if (scene->medium_count > LU_K_RM_MAX_MEDIA)
         r = lu_fail(err, LU_ERR_LIMIT, "afm: %d media (at most %d)", scene->medium_count, LU_K_RM_MAX_MEDIA);
+    /* A translucent object is a dense bounded medium (mean free path ~1/100
+     * of the object): its light-ray transmittance falls to nothing in a
+     * sliver of K_in..K_out, far beyond what tens of cosine terms can hold,
+     * and its look is multiple scattering anyway (bssrdf, pathtrace). */
+    for (int m = 0; m < scene->medium_count && r == LU_OK; m++)
+        if (scene->media[m].from_object >= 0)
+            r = lu_fail(err, LU_ERR_UNSUPPORTED,
+                        "afm: object %d is a translucent solid; attenuation function maps render participating media "
+                        "only (use bssrdf or pathtrace for translucent objects)",
+                        scene->media[m].from_object);
     lu_afm_map_init(&st->map, scene, res, (int)params[P_COEFS], (int)params[P_SAMPLES]);
     lu_aabb bounds = lu_scene_bounds(scene);
     float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;

@@ -157,6 +157,7 @@ void lu_raymarch_frame_fill(lu_raymarch_frame *f, const lu_scene *scene, const l
     f->view_table = mr->view_table;
     f->shadow = mr->shadow;
     f->maps_version = mr->maps_version;
+    f->max_steps = steps;
 }
 
 lu_k_rm_params lu_raymarch_frame_params(const lu_raymarch_frame *f) {

@@ -12,6 +12,11 @@
 #include "kernels/lu_optics.h"
 #include "methods/media_ray.h"
 
+/* Loop iterations one GPU invocation may run: Mesa's llvmpipe ends every
+ * loop of an invocation after 65535 in total (tests/test_gpu.c), so the GPU
+ * march is dispatched in segments that stay below this. */
+#define LU_RM_LOOP_BUDGET 60000
+
 typedef struct lu_raymarch_frame {
     int width, height;
     /* lu_k_rm_params fields */
@@ -26,6 +31,7 @@ typedef struct lu_raymarch_frame {
     const int *view_table;           /* light_count*2: first view, view count */
     const float *shadow;             /* view_count*map_res*map_res depths */
     unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
+    int max_steps;                   /* most march steps any camera ray takes (media diagonal / step) */
 } lu_raymarch_frame;
 
 /* The frame of one view march over mr's inputs: step = media-box diagonal / steps. */

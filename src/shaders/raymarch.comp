@@ -1,7 +1,10 @@
 /* raymarch.comp — the raymarch method on the GPU: one invocation per pixel
  * running kernels/lu_raymarch.h over the shared GPU scene
  * (kernels/lu_scene_gpu.glsl) and the frame buffers the CPU built (opaque
- * hits, bounded-media spans, light views, shadow maps). */
+ * hits, bounded-media spans, light views, shadow maps). One dispatch marches
+ * steps [u_seg_begin, u_seg_end) and keeps (L, tau) per pixel in RmState; the
+ * last one (u_finish = 1) adds the ray's end and writes the pixel (see
+ * lu_k_rm_segment for why the march is split). */
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "../kernels/lu_scene_gpu.glsl"
@@ -10,11 +13,15 @@ layout(local_size_x = 8, local_size_y = 8) in;
 #include "../kernels/lu_raymarch_gpu.glsl"
 
 layout(std430, binding = LU_RM_BINDING_NEXT) writeonly buffer Out { float rm_out[]; };
+layout(std430, binding = LU_RM_BINDING_NEXT + 1) buffer RmState { vec4 rm_state[]; };
 
 uniform float u_step;
 uniform float u_eps;
 uniform int u_jitter;
 uniform vec3 u_background;
+uniform int u_seg_begin;
+uniform int u_seg_end;
+uniform int u_finish;
 
 #include "../kernels/lu_raymarch.h"
 
@@ -31,7 +38,19 @@ void main() {
     P.pad = 0;
     int px = y * w + x;
     vec3 d = lu_k_camera_dir(lu_scene_camera(), float(x) + 0.5, float(y) + 0.5);
-    vec3 L = lu_k_rm_radiance(0, P, px, lu_scene_camera_position(), d, lu_k_rm_jitter(P.jitter, px));
+    vec3 o = lu_scene_camera_position();
+    vec3 L = vec3(0.0), tau = vec3(0.0);
+    if (u_seg_begin > 0) {
+        L = rm_state[2 * px].xyz;
+        tau = rm_state[2 * px + 1].xyz;
+    }
+    lu_k_rm_segment(0, P, px, o, d, lu_k_rm_jitter(P.jitter, px), u_seg_begin, u_seg_end, L, tau);
+    if (u_finish == 0) {
+        rm_state[2 * px] = vec4(L, 0.0);
+        rm_state[2 * px + 1] = vec4(tau, 0.0);
+        return;
+    }
+    L = lu_k_rm_finish(0, P, px, o, d, L, tau);
     rm_out[3 * px] = L.x;
     rm_out[3 * px + 1] = L.y;
     rm_out[3 * px + 2] = L.z;

@@ -237,6 +237,16 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     double t0 = lu_time_seconds();
     if (pref != LU_GPU_AUTO && pref != LU_GPU_HARDWARE && pref != LU_GPU_SOFTWARE)
         return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: unknown device preference %d", (int)pref);
+    /* LUCENT_GPU narrows an automatic choice (methods create AUTO contexts),
+     * so a user can insist on the hardware device or on llvmpipe. */
+    const char *env = getenv("LUCENT_GPU");
+    if (pref == LU_GPU_AUTO && env && *env) {
+        if (strcmp(env, "hardware") == 0) pref = LU_GPU_HARDWARE;
+        else if (strcmp(env, "software") == 0) pref = LU_GPU_SOFTWARE;
+        else if (strcmp(env, "auto") != 0)
+            return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: LUCENT_GPU=\"%.40s\" (expected auto, hardware or software)",
+                           env);
+    }
 
     /* libepoxy exits the process if it cannot dlopen a GL library when the
      * first GL function is resolved; check first so this is an error instead. */
