@@ -28,7 +28,8 @@ static const struct {
     double value;
 } k_cheap[] = {
     {"raymarch.steps", 96},   {"raymarch.shadow_res", 256}, {"bssrdf.splats", 600},
-    {"bssrdf.map_res", 256},  {"bssrdf.env_max", 2000},
+    {"bssrdf.map_res", 256},  {"bssrdf.env_max", 2000}, {"afm.steps", 96},
+    {"afm.map_res", 64},      {"afm.shadow_res", 256},
 };
 
 static int compare_names(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }

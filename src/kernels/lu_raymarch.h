@@ -113,6 +113,22 @@ LU_FN float lu_k_rm_step_weight(float x) {
     return (1.0f - lu_exp(-x)) / x;
 }
 
+/* Transmittance from x to light l (arrival ls): exact optical depth here;
+ * a method that reuses this march with another estimate (afm: attenuation
+ * function maps) defines LU_K_RM_LIGHT_TR(l, x, ls) before including this
+ * file. */
+#ifndef LU_K_RM_LIGHT_TR
+#define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist)
+#endif
+
+/* Opaque visibility of light l at the camera ray's surface hit: the shadow
+ * map here; afm defines LU_K_RM_SURFACE_VIS(l, pixel, x, n) first to read
+ * exact per-pixel visibility the CPU traced (a shadow map cannot be exact at
+ * a lit/shadowed edge seen in a pixel). */
+#ifndef LU_K_RM_SURFACE_VIS
+#define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_rm_visibility(LU_CTX, l, x, n, P.map_res)
+#endif
+
 /* Shadow-map visibility of light l at x (n: surface normal, or zero in a medium). */
 LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     int count = lu_k_rm_view_count(LU_CTX, l);
@@ -194,7 +210,7 @@ LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
                 if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
                 float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), P.map_res);
                 if (vis <= 0.0f) continue;
-                vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist)), vis);
+                vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, LU_K_RM_LIGHT_TR(l, x, ls)), vis);
                 float cos_t = lu_v3_dot(d, ls.wl);
                 for (int m = 0; m < nm; m++) {
                     if (dens[m] <= 0.0f) continue;
@@ -233,9 +249,9 @@ LU_FN vec3 lu_k_rm_finish(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
             lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
             vec3 f = lu_k_blinn_phong(hit.albedo, hit.specular, hit.shininess, hit.n, wo, ls.wl);
             if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-            float vis = lu_k_rm_visibility(LU_CTX, l, x, hit.n, P.map_res);
+            float vis = LU_K_RM_SURFACE_VIS(l, pixel, x, hit.n);
             if (vis <= 0.0f) continue;
-            vec3 tr = lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist);
+            vec3 tr = LU_K_RM_LIGHT_TR(l, x, ls);
             end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));
         }
     }

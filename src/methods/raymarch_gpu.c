@@ -14,7 +14,6 @@ struct lu_raymarch_gpu {
     lu_gpu_program *prog;
     lu_gpu_scene *scene;
     lu_gpu_buffer *buf[B_COUNT];
-    size_t size[B_COUNT];
     unsigned uploaded_version;      /* maps_version of the shadow maps on the GPU */
     bool uploaded;
 };
@@ -45,19 +44,7 @@ void lu_raymarch_gpu_destroy(lu_raymarch_gpu *g) {
 
 /* Uploads into slot i (growing it when needed) and binds it above the scene's bindings. */
 static lu_result put(lu_raymarch_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
-    if (bytes == 0) bytes = 16, data = NULL;
-    if (!g->buf[i] || g->size[i] < bytes) {
-        lu_gpu_buffer_destroy(g->buf[i]);
-        g->buf[i] = NULL;
-        lu_result r = lu_gpu_buffer_create(g->ctx, bytes, NULL, &g->buf[i], err);
-        if (r != LU_OK) return r;
-        g->size[i] = bytes;
-    }
-    if (data) {
-        lu_result r = lu_gpu_buffer_upload(g->buf[i], 0, data, bytes, err);
-        if (r != LU_OK) return r;
-    }
-    return lu_gpu_buffer_bind(g->buf[i], LU_SCENE_BINDING_FREE + i, err);
+    return lu_gpu_buffer_put(g->ctx, &g->buf[i], data, bytes, LU_SCENE_BINDING_FREE + i, err);
 }
 
 lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, const lu_raymarch_frame *f, lu_image *out,

@@ -10,15 +10,11 @@ layout(local_size_x = 8, local_size_y = 8) in;
 #include "../kernels/lu_scene_gpu.glsl"
 #include "../kernels/lu_lightview.h"
 
-layout(std430, binding = LU_SCENE_BINDING_FREE) readonly buffer Hits { float rm_hits[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 1) readonly buffer Spans { float rm_spans[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 2) readonly buffer Views { vec4 rm_views[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 3) readonly buffer ViewTable { int rm_view_table[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 4) readonly buffer Shadow { float rm_shadow[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 5) writeonly buffer Out { float rm_out[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 6) buffer RmState { vec4 rm_state[]; };
+#include "../kernels/lu_raymarch_gpu.glsl"
 
-uniform int u_map_res;
+layout(std430, binding = LU_RM_BINDING_NEXT) writeonly buffer Out { float rm_out[]; };
+layout(std430, binding = LU_RM_BINDING_NEXT + 1) buffer RmState { vec4 rm_state[]; };
+
 uniform float u_step;
 uniform float u_eps;
 uniform int u_jitter;
@@ -26,26 +22,6 @@ uniform vec3 u_background;
 uniform int u_seg_begin;
 uniform int u_seg_end;
 uniform int u_finish;
-
-float lu_k_shadow_depth(LU_CTX_PARAM, int map, int i, int j) { return rm_shadow[(map * u_map_res + j) * u_map_res + i]; }
-int lu_k_rm_view_first(LU_CTX_PARAM, int l) { return rm_view_table[2 * l]; }
-int lu_k_rm_view_count(LU_CTX_PARAM, int l) { return rm_view_table[2 * l + 1]; }
-lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v) {
-    lu_k_lightview w;
-    w.origin = rm_views[4 * v].xyz;
-    w.ortho = int(rm_views[4 * v].w);
-    w.axis_u = rm_views[4 * v + 1].xyz;
-    w.extent_u = rm_views[4 * v + 1].w;
-    w.axis_v = rm_views[4 * v + 2].xyz;
-    w.extent_v = rm_views[4 * v + 2].w;
-    w.axis_w = rm_views[4 * v + 3].xyz;
-    w.depth_far = rm_views[4 * v + 3].w;
-    return w;
-}
-float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return rm_hits[pixel * 16 + k]; }
-float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) {
-    return rm_spans[(pixel * lu_scene_medium_count() + m) * 2 + end];
-}
 
 #include "../kernels/lu_raymarch.h"
 
