@@ -30,16 +30,24 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "int lu_k_rm_view_first(LU_CTX_PARAM, int l) { return 0; }\n"
                                 "int lu_k_rm_view_count(LU_CTX_PARAM, int l) { return 0; }\n"
                                 "lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v) { lu_k_lightview w; w.ortho = 1; return w; }\n"
-                                "float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int k) { return float(k); }\n"
+                                "float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) { return float(end); }\n"
                                 "float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return -1.0; }\n"
-                                "float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k) { return 0.0; }\n"
                                 "#include \"kernels/lu_gradient_params.h\"\n"
                                 "lu_k_gr_params lu_k_gr_get(LU_CTX_PARAM) { lu_k_gr_params p; p.nx = 1; return p; }\n"
                                 "vec3 lu_k_gr_field(LU_CTX_PARAM, int i) { return vec3(float(i)); }\n"
                                 "int lu_k_gr_cell_begin(LU_CTX_PARAM, int c) { return 0; }\n"
                                 "int lu_k_gr_cell_end(LU_CTX_PARAM, int c) { return 0; }\n"
                                 "int lu_k_gr_cell_item(LU_CTX_PARAM, int k) { return k; }\n"
-                                "float lu_k_gr_sample_fetch(LU_CTX_PARAM, int j, int k) { return float(j + k); }\n");
+                                "float lu_k_gr_sample_fetch(LU_CTX_PARAM, int j, int k) { return float(j + k); }\n"
+                                "float lu_k_afm_lspan(LU_CTX_PARAM, int texel, int m, int k) { return float(k); }\n"
+                                "void lu_k_afm_store(LU_CTX_PARAM, int texel, int i, float v) { o.v[i] = v; }\n"
+                                "float lu_k_afm_fetch(LU_CTX_PARAM, int texel, int i) { return float(i); }\n"
+                                "int lu_k_afm_view_first(LU_CTX_PARAM, int l) { return 0; }\n"
+                                "int lu_k_afm_view_count(LU_CTX_PARAM, int l) { return 0; }\n"
+                                "lu_k_lightview lu_k_afm_view(LU_CTX_PARAM, int v) { lu_k_lightview w; w.ortho = 1; return w; }\n"
+                                "float lu_k_afm_cam_normal(LU_CTX_PARAM, int pixel, int m, int k) { return 0.0; }\n"
+                                "float lu_k_afm_surface(LU_CTX_PARAM, int m, int k) { return 1.0; }\n"
+                                "int lu_k_afm_param(LU_CTX_PARAM, int i) { return 4; }\n");
     int count = 0;
     DIR *dir = opendir(LU_SOURCE_DIR "/src/kernels");
     CHECK(dir != NULL);

@@ -142,8 +142,7 @@ LU_FN vec3 lu_k_gr_inscatter(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float de
 
 /* Transmittance from x along w over (0, dist): exact, or the paper's sum of
  * densities at interval Delta1 (midpoints of equal pieces no longer than
- * Delta1 across each medium's box). Towards the camera (tau_v of Eq. 5)
- * and, with Delta1 > 0, towards lights (then boxes, not boundaries). */
+ * Delta1 across each medium's box). */
 LU_FN vec3 lu_k_gr_transmittance(LU_CTX_PARAM, vec3 x, vec3 w, float dist, float delta1) {
     if (delta1 <= 0.0f) return lu_k_rm_transmittance(LU_CTX, x, w, dist);
     vec3 tau = lu_v3s(0.0f);
@@ -182,9 +181,7 @@ LU_FN vec3 lu_k_gr_field_at(LU_CTX_PARAM, lu_k_gr_params G, vec3 x) {
         float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), G.map_res);
         vec3 T = lu_v3s(0.0f);
         if (vis > 0.0f)
-            T = lu_v3_scale(G.delta1 > 0.0f ? lu_k_gr_transmittance(LU_CTX, x, ls.wl, ls.dist, G.delta1)
-                                            : lu_k_rm_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist, G.map_res),
-                            vis);
+            T = lu_v3_scale(lu_k_gr_transmittance(LU_CTX, x, ls.wl, ls.dist, G.delta1), vis);
         A = lu_v3_add(A, T);
         J = lu_v3_add(J, lu_v3_scale(lu_v3_mul(ls.irradiance, T), lu_k_phase_hg(lu_v3_dot(d, ls.wl), G.g)));
     }

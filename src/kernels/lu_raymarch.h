@@ -20,20 +20,12 @@
  *   int lu_k_rm_view_first(LU_CTX_PARAM, int l);  int lu_k_rm_view_count(LU_CTX_PARAM, int l);
  *   lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v);
  *   float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k);   (float k of the pixel's lu_k_rm_hit)
- *   float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int k);   (float k of the pixel's span record
- *       of medium m, LU_K_RM_SPAN_FLOATS: 0 start t, 1 end t, 2 entry flag, 4..6 boundary normal,
- *       7 shininess, 8..10 albedo, 12..14 specular; methods/march_inputs.h)
- *   float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k);  (boundary map view * media + m,
- *       texel (i, j), float k of LU_MARCH_BMAP_FLOATS: methods/march_inputs.h)
+ *   float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end);   (end 0: start t, 1: end t)
  *
- * Shadow rays through a bounded medium use the light's boundary map: the
- * segment of the light ray inside the boundary and the Fresnel transmittance
- * at its crossings, as the reference (exact for convex boundaries, to the
- * map's resolution). Where the camera ray enters a bounded medium, the
- * boundary's reflection F_r times its material's Blinn-Phong radiance is
- * added (the reference's term). Simplifications against the reference
- * (docs/gpu.md): environment lights are not rendered; a bounded medium is
- * present on the camera ray in its first span (and reflects there only). */
+ * Simplifications against the reference (stated in docs/gpu.md): shadow rays
+ * clip media to their world boxes, not to boundary meshes, and carry no
+ * Fresnel factor; boundary reflection and environment lights are not
+ * rendered; a bounded medium is present on the camera ray in its first span. */
 #ifndef LU_RAYMARCH_H
 #define LU_RAYMARCH_H
 
@@ -66,10 +58,6 @@ struct lu_k_rm_hit {
 };
 LU_TYPEDEF(lu_k_rm_hit)
 #define LU_K_RM_HIT_FLOATS 16
-/* Floats per boundary-map texel (LU_MARCH_BMAP_FLOATS, methods/march_inputs.h). */
-#define LU_K_RM_BMAP_FLOATS 4
-/* Floats per pixel and medium of the span record (LU_MARCH_SPAN_FLOATS). */
-#define LU_K_RM_SPAN_FLOATS 16
 
 LU_FN vec3 lu_k_rm_hit_fetch3(LU_CTX_PARAM, int pixel, int k) {
     return lu_v3(lu_k_rm_hit_fetch(LU_CTX, pixel, k), lu_k_rm_hit_fetch(LU_CTX, pixel, k + 1),
@@ -119,6 +107,28 @@ LU_FN vec3 lu_k_rm_transmittance(LU_CTX_PARAM, vec3 x, vec3 w, float dist) {
     return lu_v3_exp(lu_v3_neg(tau));
 }
 
+/* (1 - exp(-x)) / x for x >= 0, accurate in float for every x. */
+LU_FN float lu_k_rm_step_weight(float x) {
+    if (x < 0.03f) return 1.0f - x * (0.5f - x * (1.0f / 6.0f - x * (1.0f / 24.0f)));
+    return (1.0f - lu_exp(-x)) / x;
+}
+
+/* Transmittance from x to light l (arrival ls): exact optical depth here;
+ * a method that reuses this march with another estimate (afm: attenuation
+ * function maps) defines LU_K_RM_LIGHT_TR(l, x, ls) before including this
+ * file. */
+#ifndef LU_K_RM_LIGHT_TR
+#define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist)
+#endif
+
+/* Opaque visibility of light l at the camera ray's surface hit: the shadow
+ * map here; afm defines LU_K_RM_SURFACE_VIS(l, pixel, x, n) first to read
+ * exact per-pixel visibility the CPU traced (a shadow map cannot be exact at
+ * a lit/shadowed edge seen in a pixel). */
+#ifndef LU_K_RM_SURFACE_VIS
+#define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_rm_visibility(LU_CTX, l, x, n, P.map_res)
+#endif
+
 /* Shadow-map visibility of light l at x (n: surface normal, or zero in a medium). */
 LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     int count = lu_k_rm_view_count(LU_CTX, l);
@@ -130,65 +140,11 @@ LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     return lu_k_shadow_lookup(LU_CTX, vw, first + face, res, x, n);
 }
 
-/* Transmittance from x towards light l (unit wl, distance dist): the exact
- * optical depth of every medium, unbounded ones clipped to their box,
- * bounded ones to the segment of the light's boundary map (the texel x
- * projects to) times F_t at each boundary crossing between x and the light.
- * Without light views (no opaque objects, no bounded media) this is
- * lu_k_rm_transmittance. */
-LU_FN vec3 lu_k_rm_light_transmittance(LU_CTX_PARAM, int l, vec3 x, vec3 wl, float dist, int res) {
-    int count = lu_k_rm_view_count(LU_CTX, l);
-    if (count <= 0) return lu_k_rm_transmittance(LU_CTX, x, wl, dist);
-    int first = lu_k_rm_view_first(LU_CTX, l);
-    lu_k_lightview v0 = lu_k_rm_view(LU_CTX, first);
-    int face = count == 6 ? lu_k_cube_face(lu_v3_sub(x, v0.origin)) : 0;
-    lu_k_lightview vw = face == 0 ? v0 : lu_k_rm_view(LU_CTX, first + face);
-    vec3 uvd = lu_k_lightview_project(vw, x);
-    bool in_view = lu_k_lightview_inside(uvd);
-    int ti = lu_int(lu_clamp(uvd.x * lu_float(res), 0.0f, lu_float(res - 1)));
-    int tj = lu_int(lu_clamp(uvd.y * lu_float(res), 0.0f, lu_float(res - 1)));
-    vec3 tau = lu_v3s(0.0f);
-    float ft = 1.0f;
-    int nm = lu_k_medium_count(LU_CTX);
-    for (int m = 0; m < nm; m++) {
-        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
-        float lo = 0.0f, hi = dist;
-        if (md.bounded != 0 && in_view) {
-            int map = (first + face) * nm + m;
-            float da = lu_k_rm_bmap(LU_CTX, map, ti, tj, 0), db = lu_k_rm_bmap(LU_CTX, map, ti, tj, 1);
-            if (!(db > da)) continue;
-            /* depth along the light ray falls by s as the shadow ray advances s towards the light */
-            float dx = uvd.z, dl = uvd.z - dist;
-            if (da > dl && da < dx) ft *= lu_k_rm_bmap(LU_CTX, map, ti, tj, 2);
-            if (db > dl && db < dx) ft *= lu_k_rm_bmap(LU_CTX, map, ti, tj, 3);
-            lo = dx - lu_min(db, dx);
-            hi = dx - lu_max(da, dl);
-            if (!(hi > lo)) continue;
-        }
-        float a = 0.0f, b = 0.0f;
-        if (!lu_k_box_clip(md.bounds_lo, md.bounds_hi, x, wl, lo, hi, LU_REF(a), LU_REF(b))) continue;
-        float od = md.constant != 0 ? md.density_scale * (b - a)
-                                    : lu_k_optical_depth(LU_CTX, m, lu_k_medium_point(md, x), lu_k_medium_vector(md, wl), a, b,
-                                                         md.max_pieces);
-        tau = lu_v3_madd(tau, lu_k_medium_sigma_t(md), od);
-    }
-    return lu_v3_scale(lu_v3_exp(lu_v3_neg(tau)), ft);
-}
-
-/* Range [t0, t1] of medium m on the camera ray of `pixel`, clipped to [0, t_end]. */
-LU_FN bool lu_k_rm_medium_range(LU_CTX_PARAM, lu_k_medium md, int m, int pixel, vec3 o, vec3 d, float t_end,
-                                LU_OUT(float) t0, LU_OUT(float) t1) {
-    float lo = lu_k_rm_span(LU_CTX, pixel, m, 0), hi = lu_min(lu_k_rm_span(LU_CTX, pixel, m, 1), t_end);
-    if (!(hi > lo)) return false;
-    return lu_k_box_clip(md.bounds_lo, md.bounds_hi, o, d, lo, hi, t0, t1);
-}
-
 /* In-scattered radiance per unit length at x towards -d (before the
- * step's extinction): sum over media and lights of sigma_s D phase E T V,
- * with the exact optical depth to each light. dens[m]: medium m's density
- * at x. A method that precomputes the source term (gradient) defines
- * LU_K_RM_INSCATTER to its own lookup before including this file; the march
- * below stays the one written here. */
+ * step's extinction): sum over media and lights of sigma_s D phase E T V.
+ * dens[m]: medium m's density at x. A method that precomputes the source
+ * term (gradient: a radiance grid) defines LU_K_RM_INSCATTER to its own
+ * lookup before including this file; the march stays this one. */
 LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float dens[LU_K_RM_MAX_MEDIA], int nm) {
     vec3 S = lu_v3s(0.0f);
     int nl = lu_k_light_count(LU_CTX);
@@ -197,7 +153,7 @@ LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, fl
         if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
         float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), map_res);
         if (vis <= 0.0f) continue;
-        vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, lu_k_rm_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist, map_res)), vis);
+        vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, LU_K_RM_LIGHT_TR(l, x, ls)), vis);
         float cos_t = lu_v3_dot(d, ls.wl);
         for (int m = 0; m < nm; m++) {
             if (dens[m] <= 0.0f) continue;
@@ -211,112 +167,115 @@ LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, fl
 #define LU_K_RM_INSCATTER lu_k_rm_inscatter_exact
 #endif
 
-/* What the camera ray o + t d ends on: the background, or the opaque hit's
- * Blinn-Phong radiance lit through the media (exact transmittance) and the
- * shadow maps. */
-LU_FN vec3 lu_k_rm_end(LU_CTX_PARAM, lu_k_rm_params P, lu_k_rm_hit hit, vec3 o, vec3 d) {
-    if (hit.t < 0.0f) return P.background;
-    vec3 end = lu_v3s(0.0f);
-    vec3 x = lu_v3_madd(lu_v3_madd(o, d, hit.t), hit.ng, P.eps);
-    vec3 wo = lu_v3_neg(d);
-    int nl = lu_k_light_count(LU_CTX);
-    for (int l = 0; l < nl; l++) {
-        lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
-        vec3 f = lu_k_blinn_phong(hit.albedo, hit.specular, hit.shininess, hit.n, wo, ls.wl);
-        if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-        float vis = lu_k_rm_visibility(LU_CTX, l, x, hit.n, P.map_res);
-        if (vis <= 0.0f) continue;
-        vec3 tr = lu_k_rm_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist, P.map_res);
-        end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));
-    }
-    return end;
+/* Range [t0, t1] of medium m on the camera ray of `pixel`, clipped to [0, t_end]. */
+LU_FN bool lu_k_rm_medium_range(LU_CTX_PARAM, lu_k_medium md, int m, int pixel, vec3 o, vec3 d, float t_end,
+                                LU_OUT(float) t0, LU_OUT(float) t1) {
+    float lo = lu_k_rm_span(LU_CTX, pixel, m, 0), hi = lu_min(lu_k_rm_span(LU_CTX, pixel, m, 1), t_end);
+    if (!(hi > lo)) return false;
+    return lu_k_box_clip(md.bounds_lo, md.bounds_hi, o, d, lo, hi, t0, t1);
 }
 
-/* Reflection off bounded medium m's boundary where the camera ray of
- * `pixel` enters it: F_r times the boundary material's Blinn-Phong radiance
- * there (lu_k_rm_end on a hit record made of the span's normal and material). */
-LU_FN vec3 lu_k_rm_boundary_reflection(LU_CTX_PARAM, lu_k_rm_params P, int pixel, int m, vec3 o, vec3 d) {
-    if (lu_k_rm_span(LU_CTX, pixel, m, 2) == 0.0f) return lu_v3s(0.0f);
-    lu_k_rm_hit b;
-    b.t = lu_k_rm_span(LU_CTX, pixel, m, 0);
-    b.n = lu_v3(lu_k_rm_span(LU_CTX, pixel, m, 4), lu_k_rm_span(LU_CTX, pixel, m, 5), lu_k_rm_span(LU_CTX, pixel, m, 6));
-    b.ng = b.n;
-    b.pad0 = 0.0f;
-    b.shininess = lu_k_rm_span(LU_CTX, pixel, m, 7);
-    b.albedo = lu_v3(lu_k_rm_span(LU_CTX, pixel, m, 8), lu_k_rm_span(LU_CTX, pixel, m, 9), lu_k_rm_span(LU_CTX, pixel, m, 10));
-    b.specular = lu_v3(lu_k_rm_span(LU_CTX, pixel, m, 12), lu_k_rm_span(LU_CTX, pixel, m, 13),
-                       lu_k_rm_span(LU_CTX, pixel, m, 14));
-    b.pad1 = 0.0f;
-    float fr = lu_k_fresnel_reflectance(lu_v3_dot(b.n, d), lu_k_medium_get(LU_CTX, m).eta);
-    return lu_v3_scale(lu_k_rm_end(LU_CTX, P, b, o, d), fr);
-}
-
-/* Radiance along the camera ray o + t d of `pixel`; u in [0, 1) is where
- * in each step the sample sits (0.5: midpoint). */
-LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, float u) {
+/* The march is split into segments of steps so a backend can run a long
+ * march as several short passes: Mesa's llvmpipe silently stops every loop
+ * of a shader invocation once 65535 loop iterations have run in it (all
+ * loops together; tests/test_gpu.c proves it), and hardware drivers kill
+ * long dispatches. A segment carries the in-scattered radiance L and the
+ * camera ray's optical depth tau so far.
+ *
+ * lu_k_rm_segment marches steps [i0, i1) (clamped to the ray's step count)
+ * of the camera ray o + t d of `pixel`; u in [0, 1) is where in each step the
+ * sample sits (0.5: midpoint). Returns the ray's total step count. */
+LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, float u, int i0, int i1,
+                          LU_INOUT(vec3) L_io, LU_INOUT(vec3) tau_io) {
     lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
     float t_end = hit.t >= 0.0f ? hit.t : LU_K_FAR;
     int nm = lu_min(lu_k_medium_count(LU_CTX), LU_K_RM_MAX_MEDIA);
     float ra[LU_K_RM_MAX_MEDIA];
     float rb[LU_K_RM_MAX_MEDIA];
-    bool reflect[LU_K_RM_MAX_MEDIA];   /* boundary reflection still to add */
     float t0 = LU_K_FAR, t1 = 0.0f;
     for (int m = 0; m < nm; m++) {
         lu_k_medium md = lu_k_medium_get(LU_CTX, m);
         float a = 0.0f, b = 0.0f;
-        reflect[m] = md.bounded != 0 && lu_k_rm_span(LU_CTX, pixel, m, 2) != 0.0f &&
-                     lu_k_rm_span(LU_CTX, pixel, m, 0) < t_end;
         if (lu_k_rm_medium_range(LU_CTX, md, m, pixel, o, d, t_end, LU_REF(a), LU_REF(b))) {
             t0 = lu_min(t0, a);
             t1 = lu_max(t1, b);
         } else {
             a = 1.0f;
             b = 0.0f;
-            reflect[m] = false;
         }
         ra[m] = a;
         rb[m] = b;
     }
-    vec3 L = lu_v3s(0.0f);
-    vec3 T = lu_v3s(1.0f);
-    if (t1 > t0) {
-        int steps = lu_int(lu_min(lu_ceil((t1 - t0) / P.step), lu_float(LU_K_RM_MAX_STEPS)));
-        float h = (t1 - t0) / lu_float(steps);
-        for (int i = 0; i < steps; i++) {
-            float t = t0 + (lu_float(i) + u) * h;
-            vec3 x = lu_v3_madd(o, d, t);
-            /* the boundary reflects with the camera transmittance in front of it */
-            for (int m = 0; m < nm; m++) {
-                if (!reflect[m] || t < ra[m]) continue;
-                L = lu_v3_add(L, lu_v3_mul(T, lu_k_rm_boundary_reflection(LU_CTX, P, pixel, m, o, d)));
-                reflect[m] = false;
-            }
-            vec3 sig_t = lu_v3s(0.0f);
-            float dens[LU_K_RM_MAX_MEDIA];
-            bool scatters = false;
-            for (int m = 0; m < nm; m++) {
-                dens[m] = 0.0f;
-                if (t < ra[m] || t > rb[m]) continue;
-                lu_k_medium md = lu_k_medium_get(LU_CTX, m);
-                float dm = md.constant != 0 ? md.density_scale : lu_k_density(LU_CTX, m, lu_k_medium_point(md, x));
-                dens[m] = dm;
-                sig_t = lu_v3_madd(sig_t, lu_k_medium_sigma_t(md), dm);
-                scatters = scatters || (dm > 0.0f && lu_v3_maxc(md.sigma_s) > 0.0f);
-            }
-            if (lu_v3_maxc(sig_t) <= 0.0f) continue;
-            vec3 S = lu_v3s(0.0f);
-            if (scatters) S = LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, dens, nm);
-            vec3 tr = lu_v3_exp(lu_v3_scale(sig_t, -h));
-            /* integral of exp(-sigma s) over [0, h]: (1 - tr) / sigma, -> h as sigma -> 0 */
-            vec3 w = lu_v3(sig_t.x > 1e-6f ? (1.0f - tr.x) / sig_t.x : h, sig_t.y > 1e-6f ? (1.0f - tr.y) / sig_t.y : h,
-                           sig_t.z > 1e-6f ? (1.0f - tr.z) / sig_t.z : h);
-            L = lu_v3_add(L, lu_v3_mul(lu_v3_mul(T, S), w));
-            T = lu_v3_mul(T, tr);
+    if (!(t1 > t0)) return 0;
+    int steps = lu_int(lu_min(lu_ceil((t1 - t0) / P.step), lu_float(LU_K_RM_MAX_STEPS)));
+    float h = (t1 - t0) / lu_float(steps);
+    vec3 L = LU_DEREF(L_io);
+    vec3 tau = LU_DEREF(tau_io);
+    vec3 T = lu_v3_exp(lu_v3_neg(tau));
+    int iend = lu_min(i1, steps);
+    for (int i = i0; i < iend; i++) {
+        float t = t0 + (lu_float(i) + u) * h;
+        vec3 x = lu_v3_madd(o, d, t);
+        vec3 sig_t = lu_v3s(0.0f);
+        float dens[LU_K_RM_MAX_MEDIA];
+        bool scatters = false;
+        for (int m = 0; m < nm; m++) {
+            dens[m] = 0.0f;
+            if (t < ra[m] || t > rb[m]) continue;
+            lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+            float dm = md.constant != 0 ? md.density_scale : lu_k_density(LU_CTX, m, lu_k_medium_point(md, x));
+            dens[m] = dm;
+            sig_t = lu_v3_madd(sig_t, lu_k_medium_sigma_t(md), dm);
+            scatters = scatters || (dm > 0.0f && lu_v3_maxc(md.sigma_s) > 0.0f);
+        }
+        if (lu_v3_maxc(sig_t) <= 0.0f) continue;
+        vec3 S = lu_v3s(0.0f);
+        if (scatters) S = LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, dens, nm);
+        /* The step's in-scattering weight, the integral of exp(-sigma s)
+         * over [0, h] = h (1 - exp(-x)) / x with x = sigma h (series for
+         * small x: 1 - exp(-x) cancels in float at fine steps). The camera
+         * ray's transmittance is exp of the summed optical depth, not a
+         * product of per-step factors, for the same reason. */
+        vec3 xs = lu_v3_scale(sig_t, h);
+        vec3 w = lu_v3(lu_k_rm_step_weight(xs.x), lu_k_rm_step_weight(xs.y), lu_k_rm_step_weight(xs.z));
+        L = lu_v3_add(L, lu_v3_mul(lu_v3_mul(T, S), lu_v3_scale(w, h)));
+        tau = lu_v3_add(tau, xs);
+        T = lu_v3_exp(lu_v3_neg(tau));
+    }
+    LU_DEREF(L_io) = L;
+    LU_DEREF(tau_io) = tau;
+    return steps;
+}
+
+/* The end of the camera ray of `pixel` (lit opaque surface or background),
+ * seen through the optical depth tau the march accumulated, added to L. */
+LU_FN vec3 lu_k_rm_finish(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, vec3 L, vec3 tau) {
+    lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
+    int nl = lu_k_light_count(LU_CTX);
+    vec3 end = P.background;
+    if (hit.t >= 0.0f) {
+        end = lu_v3s(0.0f);
+        vec3 x = lu_v3_madd(lu_v3_madd(o, d, hit.t), hit.ng, P.eps);
+        vec3 wo = lu_v3_neg(d);
+        for (int l = 0; l < nl; l++) {
+            lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
+            vec3 f = lu_k_blinn_phong(hit.albedo, hit.specular, hit.shininess, hit.n, wo, ls.wl);
+            if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+            float vis = LU_K_RM_SURFACE_VIS(l, pixel, x, hit.n);
+            if (vis <= 0.0f) continue;
+            vec3 tr = LU_K_RM_LIGHT_TR(l, x, ls);
+            end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));
         }
     }
-    for (int m = 0; m < nm; m++)
-        if (reflect[m]) L = lu_v3_add(L, lu_v3_mul(T, lu_k_rm_boundary_reflection(LU_CTX, P, pixel, m, o, d)));
-    return lu_v3_add(L, lu_v3_mul(T, lu_k_rm_end(LU_CTX, P, hit, o, d)));
+    return lu_v3_add(L, lu_v3_mul(lu_v3_exp(lu_v3_neg(tau)), end));
+}
+
+/* Radiance along the camera ray o + t d of `pixel` in one pass. */
+LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, float u) {
+    vec3 L = lu_v3s(0.0f);
+    vec3 tau = lu_v3s(0.0f);
+    lu_k_rm_segment(LU_CTX, P, pixel, o, d, u, 0, LU_K_RM_MAX_STEPS, LU_REF(L), LU_REF(tau));
+    return lu_k_rm_finish(LU_CTX, P, pixel, o, d, L, tau);
 }
 
 /* Per-pixel jitter in [0, 1) (integer hash), or 0.5 without jitter. */

@@ -184,20 +184,3 @@ void lu_gpu_scene_destroy(lu_gpu_scene *gs) {
     lu_gpu_buffer_destroy(gs->lights);
     free(gs);
 }
-
-lu_result lu_gpu_slot_put(lu_gpu_context *ctx, lu_gpu_buffer **buf, size_t *cap, int binding, const void *data,
-                          size_t bytes, lu_error *err) {
-    if (bytes == 0) bytes = 16, data = NULL;
-    if (!*buf || *cap < bytes) {
-        lu_gpu_buffer_destroy(*buf);
-        *buf = NULL;
-        lu_result r = lu_gpu_buffer_create(ctx, bytes, NULL, buf, err);
-        if (r != LU_OK) return r;
-        *cap = bytes;
-    }
-    if (data) {
-        lu_result r = lu_gpu_buffer_upload(*buf, 0, data, bytes, err);
-        if (r != LU_OK) return r;
-    }
-    return lu_gpu_buffer_bind(*buf, binding, err);
-}

@@ -56,12 +56,6 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, lu_error 
 lu_result lu_gpu_scene_bind(lu_gpu_scene *gs, lu_error *err);
 void lu_gpu_scene_destroy(lu_gpu_scene *gs);
 
-/* A method's storage buffer slot: uploads `bytes` of data (NULL: keep the
- * contents, only make sure the size is there) into *buf, growing it
- * (recreated, *cap updated) when needed, and binds it at `binding`. */
-lu_result lu_gpu_slot_put(lu_gpu_context *ctx, lu_gpu_buffer **buf, size_t *cap, int binding, const void *data,
-                          size_t bytes, lu_error *err);
-
 /* ---- the same records for CPU drivers (no GL) ---- */
 
 /* The kernel record of a medium (see kernels/lu_medium.h). */

@@ -23,7 +23,7 @@
 #include "methods/gpu_scene.h"
 #include "methods/gradient.h"
 #include "methods/gradient_fit.h"
-#include "methods/march_inputs.h"
+#include "methods/media_ray.h"
 #include "methods/methods.h"
 
 /* ---- kernel context: the hooks of lu_gradient.h / lu_raymarch.h on the CPU ---- */
@@ -33,7 +33,7 @@ struct lu_k_ctx {
     int nm;
     const lu_k_light *kl;
     int nl;
-    const lu_march_inputs *in;
+    const lu_media_rays *mr;
     lu_k_gr_params G;
     const float *field;
     const int *cell_begin, *cell_items;
@@ -48,19 +48,16 @@ static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { ret
 static inline int lu_k_light_count(const struct lu_k_ctx *c) { return c->nl; }
 static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) { return c->kl[l]; }
 static inline float lu_k_shadow_depth(const struct lu_k_ctx *c, int map, int i, int j) {
-    return c->in->shadow[((size_t)map * c->in->res + j) * c->in->res + i];
+    return c->mr->shadow[((size_t)map * c->mr->shadow_res + j) * c->mr->shadow_res + i];
 }
-static inline int lu_k_rm_view_first(const struct lu_k_ctx *c, int l) { return c->in->view_table[2 * l]; }
-static inline int lu_k_rm_view_count(const struct lu_k_ctx *c, int l) { return c->in->view_table[2 * l + 1]; }
-static inline lu_k_lightview lu_k_rm_view(const struct lu_k_ctx *c, int v) { return c->in->views[v]; }
+static inline int lu_k_rm_view_first(const struct lu_k_ctx *c, int l) { return c->mr->view_table[2 * l]; }
+static inline int lu_k_rm_view_count(const struct lu_k_ctx *c, int l) { return c->mr->view_table[2 * l + 1]; }
+static inline lu_k_lightview lu_k_rm_view(const struct lu_k_ctx *c, int v) { return c->mr->views[v]; }
 static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k) {
-    return c->in->hits[(size_t)pixel * LU_MARCH_HIT_FLOATS + k];
+    return c->mr->hits[(size_t)pixel * LU_MR_HIT_FLOATS + k];
 }
-static inline float lu_k_rm_bmap(const struct lu_k_ctx *c, int map, int i, int j, int k) {
-    return c->in->bmaps[(((size_t)map * c->in->res + j) * c->in->res + i) * LU_MARCH_BMAP_FLOATS + k];
-}
-static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int k) {
-    return c->in->spans[((size_t)pixel * c->nm + m) * LU_MARCH_SPAN_FLOATS + k];
+static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) {
+    return c->mr->spans[((size_t)pixel * c->nm + m) * 2 + end];
 }
 static inline lu_k_gr_params lu_k_gr_get(const struct lu_k_ctx *c) { return c->G; }
 static inline lu_vec3 lu_k_gr_field(const struct lu_k_ctx *c, int i) {
@@ -77,7 +74,7 @@ static inline float lu_k_gr_sample_fetch(const struct lu_k_ctx *c, int j, int k)
 #include "kernels/lu_gradient.h"
 #include "kernels/lu_sampling.h"
 
-_Static_assert(LU_K_RM_HIT_FLOATS == LU_MARCH_HIT_FLOATS, "hit record size");
+_Static_assert(LU_K_RM_HIT_FLOATS == LU_MR_HIT_FLOATS, "hit record size");
 _Static_assert(LU_K_RM_MAX_MEDIA == 8, "lu_k_gr_inscatter takes dens[8]");
 
 /* ---- parameters: pervoxel's are the first P_PERVOXEL_COUNT ---- */
@@ -124,7 +121,8 @@ typedef struct gr_state {
     int mode;                  /* LU_K_GR_* */
     lu_backend backend;
     double p[P_COUNT];
-    lu_march_inputs in;
+    const char *who;           /* method name for messages */
+    lu_media_rays mr;          /* camera hits/spans, light views, shadow maps */
     int nm;
     lu_grid *dens;             /* per medium: reconstructed density (data NULL for constant media) */
     lu_gauss_fit *fits;        /* per medium */
@@ -159,7 +157,7 @@ static void gr_destroy(void *state) {
     gr_state *st = state;
     if (!st) return;
     lu_gradient_gpu_destroy(st->gpu);
-    lu_march_inputs_free(&st->in);
+    lu_media_rays_free(&st->mr);
     for (int m = 0; m < st->nm; m++) {
         if (st->dens) lu_grid_destroy(&st->dens[m]);
         if (st->fits) lu_gauss_fit_free(&st->fits[m]);
@@ -211,7 +209,8 @@ static lu_result gr_prepare_mode(const lu_scene *scene, const double *params, in
     lu_aabb bounds = lu_scene_bounds(scene);
     float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
     st->eps = 1e-5f * fmaxf(size, 1e-3f);
-    if (r == LU_OK) r = lu_march_inputs_init(&st->in, scene, (int)st->p[P_SHADOW_RES], who, err);
+    st->who = who;
+    if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, (int)st->p[P_SHADOW_RES], false, err);
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
     st->dens = calloc(nm, sizeof *st->dens);
     st->fits = calloc(nm, sizeof *st->fits);
@@ -593,17 +592,18 @@ static double uncovered_fraction(gr_state *st) {
 static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu_error *err) {
     gr_state *st = state;
     if (scene->medium_count != st->nm)
-        return lu_fail(err, LU_ERR_INVALID_ARG, "%s: the scene's media changed since prepare", st->in.who);
+        return lu_fail(err, LU_ERR_INVALID_ARG, "%s: the scene's media changed since prepare", st->who);
     st->scene = scene;
     st->out = out;
     const lu_camera *c = &scene->camera;
     st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
     for (int m = 0; m < scene->medium_count; m++) st->km[m] = lu_medium_to_kernel(&scene->media[m]);
     lu_k_light *kl = realloc(st->kl, (scene->light_count ? (size_t)scene->light_count : 1u) * sizeof *kl);
-    if (!kl) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", st->in.who);
+    if (!kl) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", st->who);
     st->kl = kl;
     st->nl = lu_scene_kernel_lights(scene, kl);
-    lu_result r = lu_march_inputs_update(&st->in, scene, kl, st->nl, err);
+    lu_result r = lu_media_rays_camera(&st->mr, scene, st->cam, err);
+    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, scene, kl, st->nl, err);
     if (r != LU_OK) return r;
     lu_gradient_stats keep = st->stats;
     memset(&st->stats, 0, sizeof st->stats);
@@ -637,9 +637,9 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
     G.cz = (int)fmaxf(1.0f, ceilf(ext.z / cell));
     G.rbf_floor = 1e-6f;
     G.mode = st->mode;
-    G.map_res = st->in.res;
+    G.map_res = st->mr.shadow_res;
     st->stats.grid[0] = G.nx, st->stats.grid[1] = G.ny, st->stats.grid[2] = G.nz;
-    st->kctx = (struct lu_k_ctx){st->dens, st->km, st->nm, st->kl, st->nl, &st->in, G, NULL, NULL, NULL, NULL};
+    st->kctx = (struct lu_k_ctx){st->dens, st->km, st->nm, st->kl, st->nl, &st->mr, G, NULL, NULL, NULL, NULL};
 
     lu_aabb mb = st->box;
     float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;
@@ -653,7 +653,7 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
     f->height = c->height;
     f->medium_count = scene->medium_count;
     f->light_count = st->nl;
-    f->in = &st->in;
+    f->mr = &st->mr;
 
     /* Samples: roots, then splitting levels (gradient only). */
     double t0 = lu_time_seconds();
@@ -685,7 +685,7 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
         /* The final set: every sample not split, over all levels. */
         free(st->final);
         st->final = malloc((st->n ? (size_t)st->n : 1u) * LU_K_GR_SAMPLE_FLOATS * sizeof(float));
-        if (!st->final) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", st->in.who);
+        if (!st->final) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", st->who);
         st->nfinal = 0;
         for (int j = 0; j < st->n; j++)
             if (st->active[j])
@@ -718,7 +718,7 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
         free(st->field);
         st->field = malloc(nv * 3 * sizeof(float));
         st->field_cap = st->field ? nv : 0;
-        if (!st->field) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for a %zu-voxel radiance grid", st->in.who, nv);
+        if (!st->field) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for a %zu-voxel radiance grid", st->who, nv);
     }
     st->kctx.field = st->field;
     st->kctx.cell_begin = st->cell_begin;
@@ -740,7 +740,7 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
                 "%s: gaussians %d (fit rel-L2 %.4f, %.1f ms), roots %d (fill %d), final samples %d, levels %d/%d/%d/%d, "
                 "split %d/%d/%d, grid %dx%dx%d, cell items %lld, uncovered %.4f, ms samples %.2f field %.2f march "
                 "%.2f\n",
-                st->in.who, st->stats.gaussians, st->stats.fit_rel_l2, st->stats.fit_ms, st->stats.root_samples,
+                st->who, st->stats.gaussians, st->stats.fit_rel_l2, st->stats.fit_ms, st->stats.root_samples,
                 st->stats.fill_samples,
                 st->stats.samples, st->stats.level_samples[0], st->stats.level_samples[1], st->stats.level_samples[2],
                 st->stats.level_samples[3], st->stats.split[0], st->stats.split[1], st->stats.split[2], G.nx, G.ny,

@@ -8,7 +8,7 @@
 #include <lucent/lucent.h>
 
 #include "kernels/lu_gradient_params.h"
-#include "methods/march_inputs.h"
+#include "methods/media_ray.h"
 
 typedef struct lu_gradient_frame {
     lu_k_gr_params G;
@@ -16,7 +16,7 @@ typedef struct lu_gradient_frame {
     float step, eps;
     int jitter;
     int width, height, medium_count, light_count;
-    const lu_march_inputs *in;       /* hits, spans, views, shadow maps */
+    const lu_media_rays *mr;         /* hits, spans, views, shadow maps */
     /* samples being evaluated: n records of LU_K_GR_SAMPLE_FLOATS */
     float *samples;
     int sample_count;

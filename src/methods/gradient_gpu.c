@@ -10,17 +10,17 @@
 #include "methods/gpu_scene.h"
 #include "methods/gradient.h"
 
-/* Bindings above the scene: the march inputs (LU_MARCH_GPU_BUFFERS), then these. */
-enum { B_OUT, B_SAMPLES, B_CELLS, B_ITEMS, B_FIELD, B_PARAMS, B_ET, B_COUNT };
+/* Bindings above the scene: the media-ray inputs (as raymarch.comp), then this method's. */
+enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SAMPLES, B_CELLS, B_ITEMS, B_FIELD, B_PARAMS, B_ET, B_COUNT };
 enum { PASS_EVAL = 0, PASS_FIELD = 1, PASS_MARCH = 2 };
 
 struct lu_gradient_gpu {
     lu_gpu_context *ctx;
     lu_gpu_program *prog;
     lu_gpu_scene *scene;
-    lu_march_inputs_gpu in;
     lu_gpu_buffer *buf[B_COUNT];
-    size_t size[B_COUNT];
+    unsigned maps_version;
+    bool maps_uploaded;
 };
 
 lu_result lu_gradient_gpu_create(const lu_scene *scene, lu_gradient_gpu **out, lu_error *err) {
@@ -40,7 +40,6 @@ lu_result lu_gradient_gpu_create(const lu_scene *scene, lu_gradient_gpu **out, l
 
 void lu_gradient_gpu_destroy(lu_gradient_gpu *g) {
     if (!g) return;
-    lu_march_inputs_gpu_free(&g->in);
     for (int i = 0; i < B_COUNT; i++) lu_gpu_buffer_destroy(g->buf[i]);
     lu_gpu_scene_destroy(g->scene);
     lu_gpu_program_destroy(g->prog);
@@ -49,15 +48,26 @@ void lu_gradient_gpu_destroy(lu_gradient_gpu *g) {
 }
 
 static lu_result put(lu_gradient_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
-    return lu_gpu_slot_put(g->ctx, &g->buf[i], &g->size[i], LU_SCENE_BINDING_FREE + LU_MARCH_GPU_BUFFERS + i, data, bytes,
-                           err);
+    return lu_gpu_buffer_put(g->ctx, &g->buf[i], data, bytes, LU_SCENE_BINDING_FREE + i, err);
 }
 
 /* Scene, march inputs and parameters: everything every pass reads. */
 static lu_result bind_common(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, lu_error *err) {
     lu_result r = lu_gpu_scene_update(g->scene, scene, err);
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
-    if (r == LU_OK) r = lu_march_inputs_gpu_put(&g->in, g->ctx, f->in, scene, f->light_count, LU_SCENE_BINDING_FREE, err);
+    const lu_media_rays *mr = f->mr;
+    size_t pixels = (size_t)f->width * f->height, texels = (size_t)mr->shadow_res * mr->shadow_res;
+    if (r == LU_OK) r = put(g, B_HITS, mr->hits, pixels * LU_MR_HIT_FLOATS * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_SPANS, mr->spans, pixels * (size_t)f->medium_count * 2 * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_VIEWS, mr->views_packed, (size_t)mr->view_count * LU_RM_VIEW_FLOATS * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_TABLE, mr->view_table, (size_t)f->light_count * 2 * sizeof(int), err);
+    if (r == LU_OK) {
+        /* Shadow maps change only with the lights. */
+        bool same = g->maps_uploaded && g->maps_version == mr->maps_version;
+        r = put(g, B_SHADOW, same ? NULL : mr->shadow, (size_t)mr->view_count * texels * sizeof(float), err);
+        g->maps_uploaded = r == LU_OK;
+        g->maps_version = mr->maps_version;
+    }
     if (r == LU_OK) r = put(g, B_PARAMS, &f->G, sizeof f->G, err);
     if (r != LU_OK) return r;
     lu_gpu_uniform_float(g->prog, "u_step", f->step);

@@ -1,16 +1,15 @@
 /* raymarch — fixed-step single scattering sharing the reference's kernels
  * (exact optical depth to the lights, HG phase, light arrival), on the CPU
  * and the GPU from one kernel (kernels/lu_raymarch.h). Per frame the CPU
- * builds the inputs both backends read (march_inputs.h): the camera rays'
- * first opaque hits and bounded-media spans (Embree) and shadow maps of the
- * opaque objects, since the GPU has no ray tracer. */
+ * builds the inputs both backends read: the camera rays' first opaque hits
+ * and bounded-media spans (Embree) and shadow maps of the opaque objects
+ * (lightview.h), since the GPU has no ray tracer. */
 #include <lucent/lucent.h>
 
 #include <stdlib.h>
 #include <string.h>
 
 #include "methods/gpu_scene.h"
-#include "methods/march_inputs.h"
 #include "methods/methods.h"
 #include "methods/raymarch.h"
 
@@ -25,35 +24,9 @@ struct lu_k_ctx {
     const lu_k_lightview *views;
 };
 
-static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
-    const lu_medium *med = &c->media[m];
-    return med->kind == LU_DENSITY_CONSTANT ? med->constant : lu_grid_sample(&med->grid, p);
-}
-static inline int lu_k_medium_count(const struct lu_k_ctx *c) { return c->nm; }
-static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { return c->km[m]; }
-static inline int lu_k_light_count(const struct lu_k_ctx *c) { return c->nl; }
-static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) { return c->kl[l]; }
-static inline float lu_k_shadow_depth(const struct lu_k_ctx *c, int map, int i, int j) {
-    return c->f->shadow[((size_t)map * c->f->map_res + j) * c->f->map_res + i];
-}
-static inline int lu_k_rm_view_first(const struct lu_k_ctx *c, int l) { return c->f->view_table[2 * l]; }
-static inline int lu_k_rm_view_count(const struct lu_k_ctx *c, int l) { return c->f->view_table[2 * l + 1]; }
-static inline lu_k_lightview lu_k_rm_view(const struct lu_k_ctx *c, int v) { return c->views[v]; }
-static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k) {
-    return c->f->hits[(size_t)pixel * 16 + k];
-}
-static inline float lu_k_rm_bmap(const struct lu_k_ctx *c, int map, int i, int j, int k) {
-    return c->f->bmaps[(((size_t)map * c->f->map_res + j) * c->f->map_res + i) * LU_MARCH_BMAP_FLOATS + k];
-}
-static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int k) {
-    return c->f->spans[((size_t)pixel * c->nm + m) * LU_MARCH_SPAN_FLOATS + k];
-}
+#include "methods/raymarch_hooks.h"
 
 #include "kernels/lu_raymarch.h"
-
-_Static_assert(LU_K_RM_HIT_FLOATS == LU_MARCH_HIT_FLOATS, "hit record size");
-_Static_assert(LU_K_RM_BMAP_FLOATS == LU_MARCH_BMAP_FLOATS, "boundary map texel size");
-_Static_assert(LU_K_RM_SPAN_FLOATS == LU_MARCH_SPAN_FLOATS, "span record size");
 
 enum { P_STEPS, P_JITTER, P_SHADOW_RES, P_COUNT };
 
@@ -69,7 +42,7 @@ static const lu_param_desc k_params[P_COUNT] = {
 typedef struct rm_state {
     lu_backend backend;
     int steps, jitter, res;
-    lu_march_inputs in;        /* hits, spans, light views, shadow maps */
+    lu_media_rays mr;          /* camera hits/spans, light views, shadow maps */
     lu_k_medium *km;
     lu_k_light *kl;
     int nl;
@@ -82,11 +55,13 @@ typedef struct rm_state {
     lu_raymarch_gpu *gpu;
 } rm_state;
 
+_Static_assert(LU_MR_HIT_FLOATS == LU_K_RM_HIT_FLOATS, "camera hit layout");
+
 static void rm_destroy(void *state) {
     rm_state *st = state;
     if (!st) return;
     lu_raymarch_gpu_destroy(st->gpu);
-    lu_march_inputs_free(&st->in);
+    lu_media_rays_free(&st->mr);
     free(st->km);
     free(st->kl);
     free(st);
@@ -106,7 +81,7 @@ static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_back
     lu_aabb bounds = lu_scene_bounds(scene);
     float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
     st->eps = 1e-5f * fmaxf(size, 1e-3f);
-    if (r == LU_OK) r = lu_march_inputs_init(&st->in, scene, st->res, "raymarch", err);
+    if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, st->res, false, err);
     st->km = calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *st->km);
     if (!st->km && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_raymarch_gpu_create(scene, &st->gpu, err);
@@ -122,13 +97,7 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     (void)thread;
     rm_state *st = ctx;
     const lu_camera *c = &st->scene->camera;
-    lu_k_rm_params P;
-    P.background = st->frame.background;
-    P.step = st->frame.step;
-    P.eps = st->frame.eps;
-    P.jitter = st->frame.jitter;
-    P.map_res = st->frame.map_res;
-    P.pad = 0;
+    lu_k_rm_params P = lu_raymarch_frame_params(&st->frame);
     for (int64_t y = begin; y < end; y++) {
         for (int x = 0; x < c->width; x++) {
             int px = (int)(y * c->width + x);
@@ -144,47 +113,62 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
 
 static lu_result rm_render(void *state, const lu_scene *scene, lu_image *out, lu_error *err) {
     rm_state *st = state;
+    if (scene->medium_count != st->mr.medium_count)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "raymarch: the scene's media changed since prepare");
     st->scene = scene;
     st->out = out;
     const lu_camera *c = &scene->camera;
     st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
-    if (scene->medium_count != st->in.medium_count)
-        return lu_fail(err, LU_ERR_INVALID_ARG, "raymarch: the scene's media changed since prepare");
     for (int m = 0; m < scene->medium_count; m++) st->km[m] = lu_medium_to_kernel(&scene->media[m]);
     lu_k_light *kl = realloc(st->kl, (scene->light_count ? (size_t)scene->light_count : 1u) * sizeof *kl);
     if (!kl) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     st->kl = kl;
     int nl = lu_scene_kernel_lights(scene, kl);
     st->nl = nl;
-    lu_result r = lu_march_inputs_update(&st->in, scene, kl, nl, err);
+    lu_result r = lu_media_rays_camera(&st->mr, scene, st->cam, err);
+    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, scene, kl, nl, err);
     if (r != LU_OK) return r;
 
-    lu_aabb mb = lu_scene_media_bounds(scene);
-    float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;
     lu_raymarch_frame *f = &st->frame;
-    f->width = c->width;
-    f->height = c->height;
-    f->background = scene->background;
-    f->step = fmaxf(diag, 1e-6f) / (float)st->steps;
-    f->eps = st->eps;
-    f->jitter = st->jitter;
-    f->map_res = st->res;
-    f->medium_count = scene->medium_count;
-    f->light_count = nl;
-    f->hits = st->in.hits;
-    f->spans = st->in.spans;
-    f->view_count = st->in.view_count;
-    f->views = st->in.views_packed;
-    f->view_table = st->in.view_table;
-    f->shadow = st->in.shadow;
-    f->bmaps = st->in.bmaps;
-    f->bmap_floats = st->in.bmap_floats;
-    f->maps_version = st->in.maps_version;
-    f->in = &st->in;
+    lu_raymarch_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl);
     if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, f, out, err);
-    st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, nl, f, st->in.views};
+    st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, nl, f, st->mr.views};
     lu_parallel_for(c->height, 1, render_rows, st, NULL);
     return LU_OK;
+}
+
+void lu_raymarch_frame_fill(lu_raymarch_frame *f, const lu_scene *scene, const lu_media_rays *mr, int steps, float eps,
+                            int jitter, int nl) {
+    lu_aabb mb = lu_scene_media_bounds(scene);
+    float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;
+    f->width = scene->camera.width;
+    f->height = scene->camera.height;
+    f->background = scene->background;
+    f->step = fmaxf(diag, 1e-6f) / (float)steps;
+    f->eps = eps;
+    f->jitter = jitter;
+    f->map_res = mr->shadow_res;
+    f->medium_count = scene->medium_count;
+    f->light_count = nl;
+    f->hits = mr->hits;
+    f->spans = mr->spans;
+    f->view_count = mr->view_count;
+    f->views = mr->views_packed;
+    f->view_table = mr->view_table;
+    f->shadow = mr->shadow;
+    f->maps_version = mr->maps_version;
+    f->max_steps = steps;
+}
+
+lu_k_rm_params lu_raymarch_frame_params(const lu_raymarch_frame *f) {
+    lu_k_rm_params P;
+    P.background = f->background;
+    P.step = f->step;
+    P.eps = f->eps;
+    P.jitter = f->jitter;
+    P.map_res = f->map_res;
+    P.pad = 0;
+    return P;
 }
 
 const lu_method lu_method_raymarch = {

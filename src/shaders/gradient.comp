@@ -15,14 +15,13 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 1) readonly buffer Spans { floa
 layout(std430, binding = LU_SCENE_BINDING_FREE + 2) readonly buffer Views { vec4 gr_views[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 3) readonly buffer ViewTable { int gr_view_table[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 4) readonly buffer Shadow { float gr_shadow[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 5) readonly buffer BMaps { float gr_bmaps[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 6) writeonly buffer Out { float gr_out[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 7) buffer Samples { float gr_samples[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 8) readonly buffer Cells { int gr_cells[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 9) readonly buffer Items { int gr_items[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 10) buffer Field { float gr_field[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 11) readonly buffer Params { lu_k_gr_params gr_par; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 12) buffer ErrTau { float gr_et[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 5) writeonly buffer Out { float gr_out[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 6) buffer Samples { float gr_samples[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 7) readonly buffer Cells { int gr_cells[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 8) readonly buffer Items { int gr_items[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 9) buffer Field { float gr_field[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 10) readonly buffer Params { lu_k_gr_params gr_par; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 11) buffer ErrTau { float gr_et[]; };
 
 uniform int u_pass;
 uniform int u_count;
@@ -49,11 +48,8 @@ lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v) {
     return w;
 }
 float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return gr_hits[pixel * 16 + k]; }
-float lu_k_rm_bmap(LU_CTX_PARAM, int map, int i, int j, int k) {
-    return gr_bmaps[((map * gr_par.map_res + j) * gr_par.map_res + i) * 4 + k]; // 4: LU_K_RM_BMAP_FLOATS (defined after these hooks)
-}
-float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int k) {
-    return gr_spans[(pixel * lu_scene_medium_count() + m) * 16 + k]; // 16: LU_K_RM_SPAN_FLOATS
+float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) {
+    return gr_spans[(pixel * lu_scene_medium_count() + m) * 2 + end];
 }
 lu_k_gr_params lu_k_gr_get(LU_CTX_PARAM) { return gr_par; }
 vec3 lu_k_gr_field(LU_CTX_PARAM, int i) { return vec3(gr_field[3 * i], gr_field[3 * i + 1], gr_field[3 * i + 2]); }
