@@ -37,6 +37,9 @@
  *   int lu_k_gr_cell_item(LU_CTX_PARAM, int k);              (sample index)
  *   float lu_k_gr_sample_fetch(LU_CTX_PARAM, int j, int k);  (float k of sample j, LU_K_GR_SAMPLE_FLOATS)
  *   float lu_k_gr_bmap_at(LU_CTX_PARAM, int k);  (float k of the boundary-map buffer, methods/media_ray.h)
+ *   float lu_k_gr_surf(LU_CTX_PARAM, int k);     (per medium 8 floats: boundary material albedo, shininess,
+ *       specular, -; then from surf_normals_at per pixel and medium the span's boundary normals,
+ *       LU_MR_NORMAL_FLOATS: entry, exit; outward, zero where the span has no such end)
  *
  * Shadow rays through a bounded medium use the lights' boundary maps: the
  * segment of the light ray inside the boundary and F_t at its crossings, as
@@ -334,6 +337,46 @@ LU_FN void lu_k_gr_eval(LU_CTX_PARAM, lu_k_gr_params G, vec3 x, float R, float t
     }
     LU_DEREF(E) = err;
     LU_DEREF(tau_out) = tau;
+}
+
+/* ---- boundary reflection ---- */
+
+/* Where the camera ray of `pixel` enters bounded medium m (its span starts
+ * on the boundary, in front of any opaque hit), the boundary reflects F_r
+ * times its material's Blinn-Phong radiance, lit through the media: the
+ * reference's term. The camera transmittance in front of the entry is taken
+ * as 1 (exact for the first medium along the ray). */
+LU_FN vec3 lu_k_gr_reflection(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d) {
+    lu_k_gr_params G = lu_k_gr_get(LU_CTX);
+    vec3 L = lu_v3s(0.0f);
+    if (G.reflect == 0) return L;
+    lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
+    int nm = lu_k_medium_count(LU_CTX);
+    for (int m = 0; m < nm; m++) {
+        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+        int nb = G.surf_normals_at + (pixel * nm + m) * 6;
+        vec3 n = lu_v3(lu_k_gr_surf(LU_CTX, nb), lu_k_gr_surf(LU_CTX, nb + 1), lu_k_gr_surf(LU_CTX, nb + 2));
+        float t = lu_k_rm_span(LU_CTX, pixel, m, 0);
+        if (md.bounded == 0 || lu_v3_dot(n, n) == 0.0f || (hit.t >= 0.0f && t >= hit.t)) continue;
+        if (lu_v3_dot(n, d) > 0.0f) n = lu_v3_neg(n);
+        lu_k_rm_hit b;
+        b.n = n;
+        b.t = t;
+        b.ng = n;
+        b.pad0 = 0.0f;
+        b.albedo = lu_v3(lu_k_gr_surf(LU_CTX, 8 * m), lu_k_gr_surf(LU_CTX, 8 * m + 1), lu_k_gr_surf(LU_CTX, 8 * m + 2));
+        b.shininess = lu_k_gr_surf(LU_CTX, 8 * m + 3);
+        b.specular = lu_v3(lu_k_gr_surf(LU_CTX, 8 * m + 4), lu_k_gr_surf(LU_CTX, 8 * m + 5), lu_k_gr_surf(LU_CTX, 8 * m + 6));
+        b.pad1 = 0.0f;
+        float fr = lu_k_fresnel_reflectance(lu_v3_dot(n, d), md.eta);
+        L = lu_v3_madd(L, lu_k_rm_surface(LU_CTX, P, pixel, b, o, d), fr);
+    }
+    return L;
+}
+
+/* The camera ray's radiance: the march with the grid's source term, plus the boundary reflection. */
+LU_FN vec3 lu_k_gr_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d) {
+    return lu_v3_add(lu_k_rm_radiance(LU_CTX, P, pixel, o, d, 0.5f), lu_k_gr_reflection(LU_CTX, P, pixel, o, d));
 }
 
 /* ---- interpolation at a radiance-grid voxel ---- */

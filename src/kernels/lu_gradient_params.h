@@ -26,6 +26,9 @@ struct lu_k_gr_params {
     int bviews_at;     /* boundary-map buffer: where the views start (lu_k_gr_bmap_at) */
     int bmaps_at;      /* ... where the maps start */
     int bview_count;   /* 0: no bounded medium, shadow rays clip media to their boxes */
+    int surf_normals_at; /* lu_k_gr_surf: where the per-pixel boundary normals start (after 8 floats per medium) */
+    int reflect;       /* 1: add the boundary reflection where camera rays enter bounded media */
+    int pad0, pad1;
 };
 LU_TYPEDEF(lu_k_gr_params)
 

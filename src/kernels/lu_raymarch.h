@@ -247,26 +247,30 @@ LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
     return steps;
 }
 
+/* Blinn-Phong radiance towards the camera of surface record `hit` (t >= 0)
+ * on the camera ray of `pixel`, lit through the media and the shadow maps. */
+LU_FN vec3 lu_k_rm_surface(LU_CTX_PARAM, lu_k_rm_params P, int pixel, lu_k_rm_hit hit, vec3 o, vec3 d) {
+    int nl = lu_k_light_count(LU_CTX);
+    vec3 end = lu_v3s(0.0f);
+    vec3 x = lu_v3_madd(lu_v3_madd(o, d, hit.t), hit.ng, P.eps);
+    vec3 wo = lu_v3_neg(d);
+    for (int l = 0; l < nl; l++) {
+        lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
+        vec3 f = lu_k_blinn_phong(hit.albedo, hit.specular, hit.shininess, hit.n, wo, ls.wl);
+        if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+        float vis = LU_K_RM_SURFACE_VIS(l, pixel, x, hit.n);
+        if (vis <= 0.0f) continue;
+        vec3 tr = LU_K_RM_LIGHT_TR(l, x, ls);
+        end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));
+    }
+    return end;
+}
+
 /* The end of the camera ray of `pixel` (lit opaque surface or background),
  * seen through the optical depth tau the march accumulated, added to L. */
 LU_FN vec3 lu_k_rm_finish(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, vec3 L, vec3 tau) {
     lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
-    int nl = lu_k_light_count(LU_CTX);
-    vec3 end = P.background;
-    if (hit.t >= 0.0f) {
-        end = lu_v3s(0.0f);
-        vec3 x = lu_v3_madd(lu_v3_madd(o, d, hit.t), hit.ng, P.eps);
-        vec3 wo = lu_v3_neg(d);
-        for (int l = 0; l < nl; l++) {
-            lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
-            vec3 f = lu_k_blinn_phong(hit.albedo, hit.specular, hit.shininess, hit.n, wo, ls.wl);
-            if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-            float vis = LU_K_RM_SURFACE_VIS(l, pixel, x, hit.n);
-            if (vis <= 0.0f) continue;
-            vec3 tr = LU_K_RM_LIGHT_TR(l, x, ls);
-            end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));
-        }
-    }
+    vec3 end = hit.t >= 0.0f ? lu_k_rm_surface(LU_CTX, P, pixel, hit, o, d) : P.background;
     return lu_v3_add(L, lu_v3_mul(lu_v3_exp(lu_v3_neg(tau)), end));
 }
 

@@ -38,6 +38,7 @@ struct lu_k_ctx {
     const float *field;
     const int *cell_begin, *cell_items;
     const float *samples;
+    const float *surf;            /* 8 floats per medium: boundary material */
 };
 
 static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
@@ -65,6 +66,9 @@ static inline lu_vec3 lu_k_gr_field(const struct lu_k_ctx *c, int i) {
     return lu_v3(f[0], f[1], f[2]);
 }
 static inline float lu_k_gr_bmap_at(const struct lu_k_ctx *c, int k) { return c->mr->bmap[k]; }
+static inline float lu_k_gr_surf(const struct lu_k_ctx *c, int k) {
+    return k < c->G.surf_normals_at ? c->surf[k] : c->mr->normals[k - c->G.surf_normals_at];
+}
 static inline int lu_k_gr_cell_begin(const struct lu_k_ctx *c, int cell) { return c->cell_begin[cell]; }
 static inline int lu_k_gr_cell_end(const struct lu_k_ctx *c, int cell) { return c->cell_begin[cell + 1]; }
 static inline int lu_k_gr_cell_item(const struct lu_k_ctx *c, int k) { return c->cell_items[k]; }
@@ -146,6 +150,7 @@ typedef struct gr_state {
     size_t cells_cap, items_cap;
     float *field;
     size_t field_cap;
+    float surf[8 * LU_K_RM_MAX_MEDIA]; /* boundary materials (lu_k_gr_surf) */
     lu_gradient_stats stats;
     struct lu_k_ctx kctx;
     lu_gradient_frame frame;
@@ -212,7 +217,7 @@ static lu_result gr_prepare_mode(const lu_scene *scene, const double *params, in
     float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
     st->eps = 1e-5f * fmaxf(size, 1e-3f);
     st->who = who;
-    if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, (int)st->p[P_SHADOW_RES], false, err);
+    if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, (int)st->p[P_SHADOW_RES], true, err);
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
     st->dens = calloc(nm, sizeof *st->dens);
     st->fits = calloc(nm, sizeof *st->fits);
@@ -566,7 +571,7 @@ static void march_rows(void *ctx, int64_t begin, int64_t end, int thread) {
         for (int x = 0; x < c->width; x++) {
             int px = (int)(y * c->width + x);
             lu_vec3 d = lu_k_camera_dir(st->cam, (float)x + 0.5f, (float)y + 0.5f);
-            lu_vec3 L = lu_k_rm_radiance(&st->kctx, P, px, c->position, d, 0.5f);
+            lu_vec3 L = lu_k_gr_radiance(&st->kctx, P, px, c->position, d);
             float *o = lu_image_px(st->out, x, (int)y);
             o[0] = L.x;
             o[1] = L.y;
@@ -644,8 +649,17 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
     G.bviews_at = st->mr.bmap_views_at;
     G.bmaps_at = st->mr.bmap_maps_at;
     G.bview_count = st->mr.bmap_view_count;
+    G.surf_normals_at = 8 * st->nm;
+    G.reflect = 0;
+    for (int m = 0; m < st->nm; m++) {
+        const lu_material *sm = &scene->media[m].surface;
+        float *q = st->surf + 8 * m;
+        q[0] = sm->albedo.x, q[1] = sm->albedo.y, q[2] = sm->albedo.z, q[3] = sm->shininess;
+        q[4] = sm->specular.x, q[5] = sm->specular.y, q[6] = sm->specular.z, q[7] = 0.0f;
+        G.reflect |= scene->media[m].has_boundary;
+    }
     st->stats.grid[0] = G.nx, st->stats.grid[1] = G.ny, st->stats.grid[2] = G.nz;
-    st->kctx = (struct lu_k_ctx){st->dens, st->km, st->nm, st->kl, st->nl, &st->mr, G, NULL, NULL, NULL, NULL};
+    st->kctx = (struct lu_k_ctx){st->dens, st->km, st->nm, st->kl, st->nl, &st->mr, G, NULL, NULL, NULL, NULL, st->surf};
 
     lu_aabb mb = st->box;
     float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;
@@ -660,6 +674,7 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
     f->medium_count = scene->medium_count;
     f->light_count = st->nl;
     f->mr = &st->mr;
+    f->surf = st->surf;
 
     /* Samples: roots, then splitting levels (gradient only). */
     double t0 = lu_time_seconds();

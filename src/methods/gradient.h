@@ -16,7 +16,8 @@ typedef struct lu_gradient_frame {
     float step, eps;
     int jitter;
     int width, height, medium_count, light_count;
-    const lu_media_rays *mr;         /* hits, spans, views, shadow maps */
+    const lu_media_rays *mr;         /* hits, spans, normals, views, shadow maps, boundary maps */
+    const float *surf;               /* 8 floats per medium: boundary materials (lu_k_gr_surf) */
     /* samples being evaluated: n records of LU_K_GR_SAMPLE_FLOATS */
     float *samples;
     int sample_count;

@@ -11,7 +11,7 @@
 #include "methods/gradient.h"
 
 /* Bindings above the scene: the media-ray inputs (as raymarch.comp), then this method's. */
-enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SAMPLES, B_CELLS, B_ITEMS, B_FIELD, B_PARAMS, B_ET, B_BMAP, B_COUNT };
+enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SAMPLES, B_CELLS, B_SURF, B_FIELD, B_PARAMS, B_ET, B_BMAP, B_COUNT };
 enum { PASS_EVAL = 0, PASS_FIELD = 1, PASS_MARCH = 2 };
 
 struct lu_gradient_gpu {
@@ -115,8 +115,18 @@ lu_result lu_gradient_gpu_render(lu_gradient_gpu *g, const lu_scene *scene, cons
     double t0 = lu_gpu_time_begin(g->ctx);
     lu_result r = bind_common(g, scene, f, err);
     if (r == LU_OK) r = put(g, B_SAMPLES, f->samples, (size_t)f->sample_count * LU_K_GR_SAMPLE_FLOATS * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_CELLS, f->cell_begin, (nc + 1) * sizeof(int), err);
-    if (r == LU_OK) r = put(g, B_ITEMS, f->cell_items, (size_t)f->cell_item_count * sizeof(int), err);
+    /* cell begins then items in one buffer (the shader's storage-block count stays at 16) */
+    size_t items = (size_t)f->cell_item_count;
+    if (r == LU_OK) r = put(g, B_CELLS, NULL, (nc + 1 + items) * sizeof(int), err);
+    if (r == LU_OK) r = lu_gpu_buffer_upload(g->buf[B_CELLS], 0, f->cell_begin, (nc + 1) * sizeof(int), err);
+    if (r == LU_OK && items)
+        r = lu_gpu_buffer_upload(g->buf[B_CELLS], (nc + 1) * sizeof(int), f->cell_items, items * sizeof(int), err);
+    /* boundary materials then the camera rays' span normals */
+    size_t mats = (size_t)f->G.surf_normals_at * sizeof(float);
+    size_t nrm = pixels * (size_t)f->medium_count * LU_MR_NORMAL_FLOATS * sizeof(float);
+    if (r == LU_OK) r = put(g, B_SURF, NULL, mats + nrm, err);
+    if (r == LU_OK) r = lu_gpu_buffer_upload(g->buf[B_SURF], 0, f->surf, mats, err);
+    if (r == LU_OK && f->mr->normals) r = lu_gpu_buffer_upload(g->buf[B_SURF], mats, f->mr->normals, nrm, err);
     if (r == LU_OK) r = put(g, B_FIELD, NULL, nv * 3 * sizeof(float), err);
     if (r == LU_OK) r = put(g, B_ET, NULL, 16, err);
     if (r != LU_OK) return r;

@@ -17,8 +17,8 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 3) readonly buffer ViewTable { 
 layout(std430, binding = LU_SCENE_BINDING_FREE + 4) readonly buffer Shadow { float gr_shadow[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 5) writeonly buffer Out { float gr_out[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 6) buffer Samples { float gr_samples[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 7) readonly buffer Cells { int gr_cells[]; };
-layout(std430, binding = LU_SCENE_BINDING_FREE + 8) readonly buffer Items { int gr_items[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 7) readonly buffer Cells { int gr_cells[]; };  // begins, then items
+layout(std430, binding = LU_SCENE_BINDING_FREE + 8) readonly buffer Surf { float gr_surf[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 9) buffer Field { float gr_field[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 10) readonly buffer Params { lu_k_gr_params gr_par; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 11) buffer ErrTau { float gr_et[]; };
@@ -57,7 +57,8 @@ vec3 lu_k_gr_field(LU_CTX_PARAM, int i) { return vec3(gr_field[3 * i], gr_field[
 float lu_k_gr_bmap_at(LU_CTX_PARAM, int k) { return gr_bmap[k]; }
 int lu_k_gr_cell_begin(LU_CTX_PARAM, int c) { return gr_cells[c]; }
 int lu_k_gr_cell_end(LU_CTX_PARAM, int c) { return gr_cells[c + 1]; }
-int lu_k_gr_cell_item(LU_CTX_PARAM, int k) { return gr_items[k]; }
+int lu_k_gr_cell_item(LU_CTX_PARAM, int k) { return gr_cells[gr_par.cx * gr_par.cy * gr_par.cz + 1 + k]; }
+float lu_k_gr_surf(LU_CTX_PARAM, int k) { return gr_surf[k]; }
 float lu_k_gr_sample_fetch(LU_CTX_PARAM, int j, int k) { return gr_samples[j * LU_K_GR_SAMPLE_FLOATS + k]; }
 
 #include "../kernels/lu_gradient.h"
@@ -100,7 +101,7 @@ void main() {
         P.map_res = G.map_res;
         P.pad = 0;
         vec3 d = lu_k_camera_dir(lu_scene_camera(), float(x) + 0.5, float(y) + 0.5);
-        vec3 L = lu_k_rm_radiance(0, P, i, lu_scene_camera_position(), d, 0.5);
+        vec3 L = lu_k_gr_radiance(0, P, i, lu_scene_camera_position(), d);
         gr_out[3 * i] = L.x;
         gr_out[3 * i + 1] = L.y;
         gr_out[3 * i + 2] = L.z;
