@@ -17,7 +17,8 @@ static void usage(void) {
            "--hardware insists on one kind) and prints vendor, renderer, version, the EGL\n"
            "devices found and the limits methods depend on. Exits 1 when no context can be made.\n"
            "LUCENT_GPU=auto|hardware|software in the environment does what --hardware and\n"
-           "--software do, for every GPU context lucent makes.\n");
+           "--software do, for every GPU context lucent makes; LUCENT_GPU_DEVICE=N tries only\n"
+           "EGL device N of the list printed here.\n");
 }
 
 static void print_box(const char *indent, lu_aabb b) {

@@ -29,19 +29,23 @@ static void usage(void) {
            "  --size WxH          image and window size (default: the scene camera's)\n"
            "  --exposure E        scale by 2^E before the sRGB curve (default 0)\n"
            "  --no-overlay        start with the overlay hidden\n"
+           "  --compare           render the reference first (as key C does)\n"
            "  --screenshot FILE   render --frames frames, save the window's last frame (PNG), exit\n"
            "  --frames N          frames to render with --screenshot (default 1)\n"
            "\n"
            "controls:\n"
            "  left drag           orbit the camera around its look-at point\n"
            "  wheel, PgUp/PgDn    zoom (move the camera along its view direction)\n"
-           "  arrow keys          move the selected light around the look-at point\n"
+           "  right drag, arrows  move the selected light around the look-at point\n"
            "                      (directional lights: turn the direction)\n"
            "  L                   select the next light\n"
            "  Tab / Shift+Tab     next / previous method\n"
            "  + / -               double / halve the method's main quality knob\n"
            "                      (raymarch.steps, bssrdf.splats, reference.steps, pathtrace: passes)\n"
            "  E / D               exposure up / down by 1/2 stop\n"
+           "  C                   render the reference for this view; the overlay then shows\n"
+           "                      the live rel-L2 of each frame against it (until the view\n"
+           "                      or a light changes)\n"
            "  H                   show / hide the overlay\n"
            "  R                   reset camera and lights\n"
            "  Esc, Q              quit\n"
@@ -97,9 +101,14 @@ typedef struct viewer {
     double fps_t0;
     int fps_frames;
     double fps;
-    bool dragging;
+    bool dragging, dragging_light;
     double mx, my;
     char status[256];          /* last error, shown in the overlay */
+    /* live error: the reference rendered (key C) for one camera and set of lights */
+    lu_image ref;
+    lu_camera ref_cam;
+    lu_light *ref_lights;
+    double rel_l2;             /* of the shown image against ref; < 0: none or stale */
 } viewer;
 
 static viewer *g_v;            /* GLFW callbacks reach the viewer through this */
@@ -191,6 +200,40 @@ fail:
     return false;
 }
 
+/* True when the cached reference was rendered for the current view and lights. */
+static bool ref_current(const viewer *v) {
+    return v->ref.rgb && memcmp(&v->ref_cam, &v->scene.camera, sizeof v->ref_cam) == 0 &&
+           memcmp(v->ref_lights, v->scene.lights, (size_t)v->scene.light_count * sizeof *v->ref_lights) == 0;
+}
+
+/* Renders `reference` (CPU, the --set reference.* settings) for the current
+ * view and lights: the truth the overlay's live rel-L2 is measured against. */
+static bool render_reference(viewer *v) {
+    lu_error err = {0};
+    lu_renderer *r = NULL;
+    lu_image_destroy(&v->ref);
+    memset(&v->ref, 0, sizeof v->ref);
+    lu_result rc = lu_renderer_create("reference", &v->scene, &v->settings, LU_BACKEND_CPU, &r, &err);
+    if (rc == LU_OK) rc = lu_renderer_render(r, &v->scene, &v->ref, &err);
+    lu_renderer_destroy(r);
+    if (rc != LU_OK) {
+        lu_image_destroy(&v->ref);
+        memset(&v->ref, 0, sizeof v->ref);
+        snprintf(v->status, sizeof v->status, "reference: %.190s", err.message);
+        return false;
+    }
+    v->ref_cam = v->scene.camera;
+    memcpy(v->ref_lights, v->scene.lights, (size_t)v->scene.light_count * sizeof *v->ref_lights);
+    return true;
+}
+
+static void update_error(viewer *v) {
+    v->rel_l2 = -1.0;
+    lu_metrics m;
+    lu_error err;
+    if (ref_current(v) && lu_image_compare(&v->img, &v->ref, &m, &err) == LU_OK) v->rel_l2 = m.rel_l2;
+}
+
 /* Tone maps like the PNG writer (lu_image_save), then draws the overlay. */
 static void compose(viewer *v) {
     int w = v->img.width, h = v->img.height;
@@ -200,11 +243,15 @@ static void compose(viewer *v) {
         v->rgb[i] = (uint8_t)lrintf(255.0f * (e < 1.0f ? e : 1.0f));
     }
     if (!v->overlay) return;
-    int scale = w >= 480 ? 2 : 1;
+    int scale;
     char lines[5][160];
     const lu_method *m = current_method(v);
     snprintf(lines[0], sizeof lines[0], "%s on %s", m->name, lu_backend_name(backend_for(v)));
-    snprintf(lines[1], sizeof lines[1], "%.1f ms/frame  %.1f fps  prepare %.0f ms", v->last_ms, v->fps, v->prepare_ms);
+    char err_text[48] = "";
+    if (v->rel_l2 >= 0.0) snprintf(err_text, sizeof err_text, "  rel-L2 %.2g", v->rel_l2);
+    else if (v->ref.rgb) snprintf(err_text, sizeof err_text, "  (C: new reference)");
+    snprintf(lines[1], sizeof lines[1], "%.1f ms/frame  %.1f fps  prepare %.0f ms%s", v->last_ms, v->fps, v->prepare_ms,
+             err_text);
     char knob[64] = "";
     for (size_t i = 0; i < sizeof k_knobs / sizeof k_knobs[0]; i++)
         if (strcmp(k_knobs[i].method, m->name) == 0 && strcmp(m->name, "pathtrace") != 0)
@@ -214,12 +261,16 @@ static void compose(viewer *v) {
     static const char *const kinds[] = {"point", "spot", "directional", "environment"};
     snprintf(lines[3], sizeof lines[3], "light %d/%d %s  %dx%d", v->scene.light_count ? v->light + 1 : 0,
              v->scene.light_count, l ? kinds[l->type] : "-", w, h);
-    snprintf(lines[4], sizeof lines[4], "%s", v->status[0] ? v->status : "tab: method  +/-: quality  arrows: light  h: help off");
-    int lh = (LU_FONT_H + 3) * scale, bw = 0;
+    snprintf(lines[4], sizeof lines[4], "%s", v->status[0] ? v->status : "tab method  +/- quality  arrows light  h hide");
+    int bw = 0;
     for (int i = 0; i < 5; i++) {
-        int tw = lu_font_text_width(lines[i], scale);
+        int tw = lu_font_text_width(lines[i], 1);
         if (tw > bw) bw = tw;
     }
+    /* double size when the widest line still fits */
+    scale = 2 * bw + 12 <= w ? 2 : 1;
+    bw *= scale;
+    int lh = (LU_FONT_H + 3) * scale;
     lu_font_backdrop(v->rgb, w, h, 0, 0, bw + 6 * scale, 5 * lh + 4 * scale);
     static const uint8_t white[3] = {235, 235, 235}, amber[3] = {255, 190, 60}, red[3] = {255, 90, 80};
     for (int i = 0; i < 5; i++)
@@ -341,6 +392,10 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
     case GLFW_KEY_E: v->exposure += 0.5f; break;
     case GLFW_KEY_D: v->exposure -= 0.5f; break;
     case GLFW_KEY_H: v->overlay = !v->overlay; break;
+    case GLFW_KEY_C:
+        /* blocking: the reference takes seconds on a large image */
+        if (render_reference(v)) update_error(v);
+        break;
     case GLFW_KEY_R:
         v->scene.camera = v->cam0;
         memcpy(v->scene.lights, v->lights0, (size_t)v->scene.light_count * sizeof *v->lights0);
@@ -353,19 +408,22 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
 
 static void on_button(GLFWwindow *win, int button, int action, int mods) {
     (void)mods;
-    if (button != GLFW_MOUSE_BUTTON_LEFT) return;
-    g_v->dragging = action == GLFW_PRESS;
+    if (button == GLFW_MOUSE_BUTTON_LEFT) g_v->dragging = action == GLFW_PRESS;
+    else if (button == GLFW_MOUSE_BUTTON_RIGHT) g_v->dragging_light = action == GLFW_PRESS;
+    else return;
     glfwGetCursorPos(win, &g_v->mx, &g_v->my);
 }
 
 static void on_cursor(GLFWwindow *win, double x, double y) {
     (void)win;
     viewer *v = g_v;
-    if (!v->dragging) return;
+    if (!v->dragging && !v->dragging_light) return;
     double dx = x - v->mx, dy = y - v->my;
     v->mx = x;
     v->my = y;
-    if (dx != 0 || dy != 0) orbit(v, (float)(-dx * 0.01), (float)(dy * 0.01));
+    if (dx == 0 && dy == 0) return;
+    if (v->dragging) orbit(v, (float)(-dx * 0.01), (float)(dy * 0.01));
+    else move_light(v, (float)(dx * 0.01), (float)(-dy * 0.01));
 }
 
 static void on_scroll(GLFWwindow *win, double xoff, double yoff) {
@@ -410,6 +468,7 @@ static GLFWwindow *open_window(int w, int h, const char *title) {
 int lu_cmd_view(int argc, char **argv) {
     const char *scene_path = NULL, *method = "raymarch", *shot = NULL;
     int width = 0, height = 0, frames = 1, rc = LU_EXIT_OK;
+    bool compare = false;
     static viewer v;
     memset(&v, 0, sizeof v);
     v.want_backend = LU_BACKEND_GPU;
@@ -434,6 +493,8 @@ int lu_cmd_view(int argc, char **argv) {
             char *end;
             v.exposure = strtof(argv[++i], &end);
             if (*end) rc = lu_cli_usage("view", "--exposure takes a number");
+        } else if (strcmp(a, "--compare") == 0) {
+            compare = true;
         } else if (strcmp(a, "--no-overlay") == 0) {
             v.overlay = false;
         } else if (strcmp(a, "--screenshot") == 0 && has_next) {
@@ -474,10 +535,12 @@ int lu_cmd_view(int argc, char **argv) {
     v.cam0 = v.scene.camera;
     int w = v.scene.camera.width, h = v.scene.camera.height;
     v.lights0 = malloc((size_t)(v.scene.light_count ? v.scene.light_count : 1) * sizeof *v.lights0);
+    v.ref_lights = malloc((size_t)(v.scene.light_count ? v.scene.light_count : 1) * sizeof *v.ref_lights);
+    v.rel_l2 = -1.0;
     v.accum = malloc((size_t)w * h * 3 * sizeof(float));
     v.rgb = malloc((size_t)w * h * 3);
     GLFWwindow *win = NULL;
-    if (!v.lights0 || !v.accum || !v.rgb || lu_image_create(&v.img, w, h, &err) != LU_OK) {
+    if (!v.lights0 || !v.ref_lights || !v.accum || !v.rgb || lu_image_create(&v.img, w, h, &err) != LU_OK) {
         fprintf(stderr, "lucent view: error: out of memory for a %dx%d image\n", w, h);
         rc = LU_EXIT_FAIL;
         goto done;
@@ -510,14 +573,16 @@ int lu_cmd_view(int argc, char **argv) {
     glfwSetScrollCallback(win, on_scroll);
     v.need_create = true;
     v.dirty = true;
+    if (compare && !render_reference(&v)) fprintf(stderr, "lucent view: %s\n", v.status);
     v.fps_t0 = glfwGetTime();
     int frame = 0;
     while (!glfwWindowShouldClose(win)) {
         /* Deterministic methods render again only after a change;
-         * progressive ones keep adding passes; --screenshot renders every frame. */
-        bool render_now = v.dirty || progressive(&v) || shot;
+         * progressive ones keep adding passes (until one fails); --screenshot
+         * renders every frame. */
+        bool render_now = v.dirty || (progressive(&v) && !v.status[0]) || shot;
         if (render_now) {
-            render_frame(&v);
+            if (render_frame(&v)) update_error(&v);
             v.fps_frames++;
             double now = glfwGetTime();
             if (now - v.fps_t0 >= 0.5 || v.fps_frames == 1) {
@@ -534,8 +599,10 @@ int lu_cmd_view(int argc, char **argv) {
             if (!save_screenshot(w, h, shot, &err)) {
                 rc = lu_cli_error("view", &err);
             } else {
-                fprintf(stderr, "lucent view: %s after %d frames of %s on %s (last %.1f ms)\n", shot, frames,
+                fprintf(stderr, "lucent view: %s after %d frames of %s on %s (last %.1f ms)", shot, frames,
                         current_method(&v)->name, lu_backend_name(backend_for(&v)), v.last_ms);
+                if (v.rel_l2 >= 0.0) fprintf(stderr, ", rel-L2 vs reference %.6g", v.rel_l2);
+                fputc('\n', stderr);
                 if (v.status[0]) rc = LU_EXIT_FAIL;
             }
             break;
@@ -548,10 +615,15 @@ int lu_cmd_view(int argc, char **argv) {
     lu_renderer_destroy(v.r);
     v.r = NULL;
     glfwDestroyWindow(win);
-    glfwTerminate();
+    /* No glfwTerminate: it closes the display and unloads the GL driver, and
+     * Mesa 22.3's swrast_dri.so leaks on every unload (LeakSanitizer; the same
+     * reason the GPU backend never terminates its EGL displays, context.c).
+     * The process ends right after this command. */
 done:
     lu_renderer_destroy(v.r);
     lu_image_destroy(&v.img);
+    lu_image_destroy(&v.ref);
+    free(v.ref_lights);
     free(v.accum);
     free(v.rgb);
     free(v.lights0);

@@ -107,23 +107,6 @@ LU_FN vec3 lu_k_rm_transmittance(LU_CTX_PARAM, vec3 x, vec3 w, float dist) {
     return lu_v3_exp(lu_v3_neg(tau));
 }
 
-/* A point or spot light at p near the step [ta, ta + h] of the ray o + t d:
- * the factor that turns its 1/dist^2 at the sample (dist) into the step's
- * mean of 1/d(t)^2, (atan((tb - tc)/b) - atan((ta - tc)/b)) / (b h), with tc
- * the closest approach and b the ray's distance to the light. A fixed step
- * passing a light inside a medium otherwise hits or misses the 1/d^2 peak
- * (smoke_glow: one pixel 50x too bright, 15 % rel-L2 at 512x512). 1 when the
- * light is further than 16 steps (the factor is then within 3e-4 of 1). */
-LU_FN float lu_k_rm_near_light(vec3 p, vec3 o, vec3 d, float ta, float h, float dist) {
-    vec3 op = lu_v3_sub(p, o);
-    float tc = lu_v3_dot(op, d);
-    float b = lu_sqrt(lu_max(lu_v3_dot(op, op) - tc * tc, 0.0f));
-    if (b > 16.0f * h || lu_abs(tc - (ta + 0.5f * h)) > 16.0f * h) return 1.0f;
-    b = lu_max(b, 1e-3f * h);
-    float mean = (lu_atan2(ta + h - tc, b) - lu_atan2(ta - tc, b)) / (b * h);
-    return mean * dist * dist;
-}
-
 /* (1 - exp(-x)) / x for x >= 0, accurate in float for every x. */
 LU_FN float lu_k_rm_step_weight(float x) {
     if (x < 0.03f) return 1.0f - x * (0.5f - x * (1.0f / 6.0f - x * (1.0f / 24.0f)));
@@ -157,6 +140,33 @@ LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     return lu_k_shadow_lookup(LU_CTX, vw, first + face, res, x, n);
 }
 
+/* In-scattered radiance per unit length at x towards -d (before the
+ * step's extinction): sum over media and lights of sigma_s D phase E T V.
+ * dens[m]: medium m's density at x. A method that precomputes the source
+ * term (gradient: a radiance grid) defines LU_K_RM_INSCATTER to its own
+ * lookup before including this file; the march stays this one. */
+LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float dens[LU_K_RM_MAX_MEDIA], int nm) {
+    vec3 S = lu_v3s(0.0f);
+    int nl = lu_k_light_count(LU_CTX);
+    for (int l = 0; l < nl; l++) {
+        lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
+        if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+        float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), map_res);
+        if (vis <= 0.0f) continue;
+        vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, LU_K_RM_LIGHT_TR(l, x, ls)), vis);
+        float cos_t = lu_v3_dot(d, ls.wl);
+        for (int m = 0; m < nm; m++) {
+            if (dens[m] <= 0.0f) continue;
+            lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+            S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(md.sigma_s, E), dens[m] * lu_k_phase_hg(cos_t, md.g)));
+        }
+    }
+    return S;
+}
+#ifndef LU_K_RM_INSCATTER
+#define LU_K_RM_INSCATTER lu_k_rm_inscatter_exact
+#endif
+
 /* Range [t0, t1] of medium m on the camera ray of `pixel`, clipped to [0, t_end]. */
 LU_FN bool lu_k_rm_medium_range(LU_CTX_PARAM, lu_k_medium md, int m, int pixel, vec3 o, vec3 d, float t_end,
                                 LU_OUT(float) t0, LU_OUT(float) t1) {
@@ -180,7 +190,6 @@ LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
     lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
     float t_end = hit.t >= 0.0f ? hit.t : LU_K_FAR;
     int nm = lu_min(lu_k_medium_count(LU_CTX), LU_K_RM_MAX_MEDIA);
-    int nl = lu_k_light_count(LU_CTX);
     float ra[LU_K_RM_MAX_MEDIA];
     float rb[LU_K_RM_MAX_MEDIA];
     float t0 = LU_K_FAR, t1 = 0.0f;
@@ -221,24 +230,7 @@ LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
         }
         if (lu_v3_maxc(sig_t) <= 0.0f) continue;
         vec3 S = lu_v3s(0.0f);
-        if (scatters) {
-            for (int l = 0; l < nl; l++) {
-                lu_k_light lk = lu_k_light_get(LU_CTX, l);
-                lu_k_light_sample ls = lu_k_light_arrive(lk, x);
-                if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-                if (lk.type != LU_K_LIGHT_DIRECTIONAL)
-                    ls.irradiance = lu_v3_scale(ls.irradiance, lu_k_rm_near_light(lk.position, o, d, t0 + lu_float(i) * h, h, ls.dist));
-                float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), P.map_res);
-                if (vis <= 0.0f) continue;
-                vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, LU_K_RM_LIGHT_TR(l, x, ls)), vis);
-                float cos_t = lu_v3_dot(d, ls.wl);
-                for (int m = 0; m < nm; m++) {
-                    if (dens[m] <= 0.0f) continue;
-                    lu_k_medium md = lu_k_medium_get(LU_CTX, m);
-                    S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(md.sigma_s, E), dens[m] * lu_k_phase_hg(cos_t, md.g)));
-                }
-            }
-        }
+        if (scatters) S = LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, dens, nm);
         /* The step's in-scattering weight, the integral of exp(-sigma s)
          * over [0, h] = h (1 - exp(-x)) / x with x = sigma h (series for
          * small x: 1 - exp(-x) cancels in float at fine steps). The camera

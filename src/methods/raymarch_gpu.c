@@ -73,14 +73,18 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
     lu_gpu_uniform_int(g->prog, "u_jitter", f->jitter);
     lu_gpu_uniform_vec3(g->prog, "u_background", f->background.x, f->background.y, f->background.z);
     /* Steps per dispatch: an upper bound of the loop iterations one step runs
-     * (media, lights, PCF taps, each shadow ray's cell pieces) kept under
-     * llvmpipe's 65535 iterations per invocation (lu_k_rm_segment), with one
-     * step's worth left for the finishing surface term. */
-    long per_step = 2 + 2L * f->medium_count;
+     * (llvmpipe counts each pass through a loop body plus one per loop
+     * entered): the step itself, the media loop, the light loop, and per
+     * light the 2x2 PCF taps, two more media loops, a 3-axis box clip per
+     * medium and each shadow ray's DDA pieces. Kept under llvmpipe's 65535
+     * iterations per invocation (lu_k_rm_segment) with one step's worth left
+     * for the finishing surface term (tests/test_gpu.c measures the cap). */
+    long nm = f->medium_count;
+    long per_step = 3 + nm;
     for (int l = 0; l < f->light_count; l++) {
-        per_step += 8;
+        per_step += 12 + 6 * nm;
         for (int m = 0; m < scene->medium_count; m++)
-            per_step += 4 + (long)lu_medium_to_kernel(&scene->media[m]).max_pieces;
+            per_step += 1 + (long)lu_medium_to_kernel(&scene->media[m]).max_pieces;
     }
     int seg = (int)(LU_RM_LOOP_BUDGET / per_step) - 1;
     if (seg < 1) seg = 1;

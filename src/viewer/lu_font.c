@@ -1,6 +1,7 @@
 /* The viewer's 5x7 bitmap font (see lu_font.h). */
 #include "viewer/lu_font.h"
 
+#include <stdbool.h>
 #include <string.h>
 
 typedef struct glyph {
@@ -57,7 +58,9 @@ int lu_font_text_width(const char *text, int scale) { return (int)strlen(text) *
 void lu_font_draw(uint8_t *rgb, int width, int height, int x, int y, const char *text, int scale,
                   const uint8_t color[3]) {
     for (const char *p = text; *p; p++, x += (LU_FONT_W + 1) * scale) {
-        const uint8_t *rows = lu_font_glyph(*p);
+        /* the small x only between a digit and a digit ("640x480") */
+        bool dims = *p == 'x' && p > text && p[-1] >= '0' && p[-1] <= '9' && p[1] >= '0' && p[1] <= '9';
+        const uint8_t *rows = lu_font_glyph(*p == 'x' && !dims ? 'X' : *p);
         for (int r = 0; r < LU_FONT_H; r++)
             for (int c = 0; c < LU_FONT_W; c++) {
                 if (!(rows[r] & (0x10 >> c))) continue;

@@ -2,7 +2,8 @@
  * on-screen overlay (fps, method, backend, samples), drawn into an 8-bit RGB
  * buffer on the CPU so the overlay needs no font files and no GL text path.
  * Covers digits, A-Z (lower case is drawn as upper case), space and
- * . , : ; / = - + ( ) [ ] % _ x < > ' ? ! #; other characters draw as '?'. */
+ * . , : ; / = - + ( ) [ ] % _ < > ' ? ! #, and a small x between digits
+ * ("640x480"); other characters draw as '?'. */
 #ifndef LU_VIEWER_FONT_H
 #define LU_VIEWER_FONT_H
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The GPU backend from the command line: `info --gpu` names a 4.5 context;
-# LUCENT_GPU narrows the device kind; a forced --backend gpu without a usable
+# LUCENT_GPU narrows the device kind, LUCENT_GPU_DEVICE picks a device; a forced --backend gpu without a usable
 # GPU fails with one clear line (exit 1), --backend auto falls back to the CPU
 # with a note and the same image; methods without a GPU path say so.
 # Args: LUCENT_BINARY SOURCE_DIR
@@ -22,6 +22,16 @@ LUCENT_GPU=software "$lucent" info --gpu | grep -q "(software)" || fail "LUCENT_
 LUCENT_GPU=bogus "$lucent" render "$scene" --method raymarch --backend gpu --size 16x12 -o "$tmp/x.png" 2>"$tmp/e.txt"
 [[ $? == 1 ]] || fail "LUCENT_GPU=bogus: expected exit 1"
 grep -q 'LUCENT_GPU="bogus"' "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "LUCENT_GPU=bogus message"; }
+
+# LUCENT_GPU_DEVICE picks one EGL device by its index; out of range or not a
+# number is an error naming the variable.
+LUCENT_GPU_DEVICE=0 "$lucent" info --gpu | grep -q "^device  *EGL device 0" || fail "LUCENT_GPU_DEVICE=0"
+LUCENT_GPU_DEVICE=15 "$lucent" info --gpu >/dev/null 2>"$tmp/e.txt"
+[[ $? == 1 ]] || fail "LUCENT_GPU_DEVICE=15: expected exit 1"
+grep -q "LUCENT_GPU_DEVICE=15 but there are" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "LUCENT_GPU_DEVICE=15 message"; }
+LUCENT_GPU_DEVICE=x "$lucent" info --gpu >/dev/null 2>"$tmp/e.txt"
+[[ $? == 1 ]] || fail "LUCENT_GPU_DEVICE=x: expected exit 1"
+grep -q 'LUCENT_GPU_DEVICE="x"' "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "LUCENT_GPU_DEVICE=x message"; }
 
 # No EGL driver at all (glvnd finds no vendor): exit 1, one line, no crash.
 __EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent.json "$lucent" render "$scene" --method raymarch --backend gpu \

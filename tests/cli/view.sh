@@ -3,7 +3,8 @@
 # screenshot of a method equals `lucent render` of the same scene and method
 # (same backend, same tone curve, so the 8-bit images agree exactly: the
 # bound allows 1e-3 for driver differences in the blit); the overlay draws
-# into the image; progressive passes converge.
+# into the image; the live error equals `lucent compare`; progressive
+# passes converge.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
 lucent=$1
@@ -42,6 +43,19 @@ check_same() {  # scene method backend size [settings...]
 check_same smoke_glow raymarch gpu 64x48
 check_same bssrdf_spheres bssrdf gpu 64x40 --set bssrdf.splats=600
 check_same cube_torus raymarch cpu 48x48
+
+# Live error: --compare renders the reference; the rel-L2 the viewer reports
+# for its frame equals `lucent compare` of the same two renders.
+view "$src/scenes/smoke_glow.json" --size 48x36 --compare --no-overlay --screenshot "$tmp/cmp.png" 2>"$tmp/e.txt" \
+  || { cat "$tmp/e.txt"; fail "view --compare"; }
+live=$(sed -n 's/.*rel-L2 vs reference \([0-9.e+-]*\).*/\1/p' "$tmp/e.txt")
+[[ -n $live ]] || { cat "$tmp/e.txt"; fail "no live rel-L2 reported"; }
+"$lucent" render "$src/scenes/smoke_glow.json" --method raymarch --backend gpu --size 48x36 -o "$tmp/rm.pfm" 2>/dev/null
+"$lucent" render "$src/scenes/smoke_glow.json" --method reference --size 48x36 -o "$tmp/ref.pfm" 2>/dev/null
+want=$("$lucent" compare "$tmp/rm.pfm" "$tmp/ref.pfm" | awk '$1 == "rel_l2" { print $2 }')
+echo "  live rel-L2 $live, lucent compare $want"
+awk -v a="$live" -v b="$want" 'BEGIN { d = a - b; if (d < 0) d = -d; exit !(b > 0 && d <= 1e-4 * b) }' \
+  || fail "live rel-L2 $live != $want"
 
 # The overlay is drawn into the window (top-left), so it changes the screenshot.
 view "$src/scenes/smoke_glow.json" --size 160x120 --screenshot "$tmp/overlay.png" 2>/dev/null || fail "overlay shot"
