@@ -53,6 +53,7 @@ static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k
 static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) { return end ? 1e30f : 0.0f; }
 static inline lu_k_gr_params lu_k_gr_get(const struct lu_k_ctx *c) { return c->G; }
 static inline lu_vec3 lu_k_gr_field(const struct lu_k_ctx *c, int i) { return lu_v3s(0.0f); }
+static inline float lu_k_gr_bmap_at(const struct lu_k_ctx *c, int k) { return 0.0f; }
 static inline int lu_k_gr_cell_begin(const struct lu_k_ctx *c, int cell) { return c->cell_begin[cell]; }
 static inline int lu_k_gr_cell_end(const struct lu_k_ctx *c, int cell) { return c->cell_begin[cell + 1]; }
 static inline int lu_k_gr_cell_item(const struct lu_k_ctx *c, int k) { return c->cell_items[k]; }

@@ -39,6 +39,7 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "int lu_k_gr_cell_end(LU_CTX_PARAM, int c) { return 0; }\n"
                                 "int lu_k_gr_cell_item(LU_CTX_PARAM, int k) { return k; }\n"
                                 "float lu_k_gr_sample_fetch(LU_CTX_PARAM, int j, int k) { return float(j + k); }\n"
+                                "float lu_k_gr_bmap_at(LU_CTX_PARAM, int k) { return float(k); }\n"
                                 "float lu_k_afm_lspan(LU_CTX_PARAM, int texel, int m, int k) { return float(k); }\n"
                                 "void lu_k_afm_store(LU_CTX_PARAM, int texel, int i, float v) { o.v[i] = v; }\n"
                                 "float lu_k_afm_fetch(LU_CTX_PARAM, int texel, int i) { return float(i); }\n"

@@ -36,6 +36,11 @@
  *   int lu_k_gr_cell_begin(LU_CTX_PARAM, int cell);  int lu_k_gr_cell_end(LU_CTX_PARAM, int cell);
  *   int lu_k_gr_cell_item(LU_CTX_PARAM, int k);              (sample index)
  *   float lu_k_gr_sample_fetch(LU_CTX_PARAM, int j, int k);  (float k of sample j, LU_K_GR_SAMPLE_FLOATS)
+ *   float lu_k_gr_bmap_at(LU_CTX_PARAM, int k);  (float k of the boundary-map buffer, methods/media_ray.h)
+ *
+ * Shadow rays through a bounded medium use the lights' boundary maps: the
+ * segment of the light ray inside the boundary and F_t at its crossings, as
+ * the reference (exact for convex boundaries, to the map's resolution).
  */
 #ifndef LU_GRADIENT_H
 #define LU_GRADIENT_H
@@ -45,6 +50,8 @@
 #include "lu_optics.h"
 
 #include "lu_gradient_params.h"
+#include "lu_lightview.h"
+#include "lu_march.h"
 
 /* A sample as stored (LU_K_GR_SAMPLE_FLOATS floats, vec4-aligned for the
  * GPU's float buffer): x, R | wgt, rr, -, - | F, - | gx, - | gy, - | gz, -. */
@@ -131,10 +138,75 @@ LU_FN vec3 lu_k_gr_inscatter(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float de
     for (int m = 0; m < nm; m++) s = lu_v3_madd(s, lu_k_medium_get(LU_CTX, m).sigma_s, dens[m]);
     return lu_v3_mul(s, J);
 }
+/* ---- transmittance to a light through bounded and unbounded media ---- */
+
+LU_FN lu_k_lightview lu_k_gr_bview(LU_CTX_PARAM, lu_k_gr_params G, int v) {
+    int o = G.bviews_at + 16 * v;
+    lu_k_lightview w;
+    w.origin = lu_v3(lu_k_gr_bmap_at(LU_CTX, o), lu_k_gr_bmap_at(LU_CTX, o + 1), lu_k_gr_bmap_at(LU_CTX, o + 2));
+    w.ortho = lu_int(lu_k_gr_bmap_at(LU_CTX, o + 3));
+    w.axis_u = lu_v3(lu_k_gr_bmap_at(LU_CTX, o + 4), lu_k_gr_bmap_at(LU_CTX, o + 5), lu_k_gr_bmap_at(LU_CTX, o + 6));
+    w.extent_u = lu_k_gr_bmap_at(LU_CTX, o + 7);
+    w.axis_v = lu_v3(lu_k_gr_bmap_at(LU_CTX, o + 8), lu_k_gr_bmap_at(LU_CTX, o + 9), lu_k_gr_bmap_at(LU_CTX, o + 10));
+    w.extent_v = lu_k_gr_bmap_at(LU_CTX, o + 11);
+    w.axis_w = lu_v3(lu_k_gr_bmap_at(LU_CTX, o + 12), lu_k_gr_bmap_at(LU_CTX, o + 13), lu_k_gr_bmap_at(LU_CTX, o + 14));
+    w.depth_far = lu_k_gr_bmap_at(LU_CTX, o + 15);
+    return w;
+}
+
+/* Transmittance from x towards light l (unit wl, distance dist): exact
+ * optical depth of every medium; unbounded ones clipped to their box,
+ * bounded ones (when boundary maps exist) to the segment of the texel x
+ * projects to, times F_t at each boundary crossing between x and the light. */
+LU_FN vec3 lu_k_gr_light_transmittance(LU_CTX_PARAM, int l, vec3 x, vec3 wl, float dist) {
+    lu_k_gr_params G = lu_k_gr_get(LU_CTX);
+    int res = G.map_res;
+    int count = G.bview_count > 0 ? lu_int(lu_k_gr_bmap_at(LU_CTX, 2 * l + 1)) : 0;
+    int first = count > 0 ? lu_int(lu_k_gr_bmap_at(LU_CTX, 2 * l)) : 0;
+    int face = 0;
+    vec3 uvd = lu_v3s(-1.0f);
+    if (count > 0) {
+        lu_k_lightview v0 = lu_k_gr_bview(LU_CTX, G, first);
+        face = count == 6 ? lu_k_cube_face(lu_v3_sub(x, v0.origin)) : 0;
+        lu_k_lightview vw = face == 0 ? v0 : lu_k_gr_bview(LU_CTX, G, first + face);
+        uvd = lu_k_lightview_project(vw, x);
+    }
+    bool in_view = count > 0 && lu_k_lightview_inside(uvd);
+    int ti = lu_int(lu_clamp(uvd.x * lu_float(res), 0.0f, lu_float(res - 1)));
+    int tj = lu_int(lu_clamp(uvd.y * lu_float(res), 0.0f, lu_float(res - 1)));
+    vec3 tau = lu_v3s(0.0f);
+    float ft = 1.0f;
+    int nm = lu_k_medium_count(LU_CTX);
+    for (int m = 0; m < nm; m++) {
+        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+        float lo = 0.0f, hi = dist;
+        if (md.bounded != 0 && in_view) {
+            int t0 = G.bmaps_at + ((((first + face) * nm + m) * res + tj) * res + ti) * 4; /* LU_MR_BMAP_FLOATS */
+            float da = lu_k_gr_bmap_at(LU_CTX, t0), db = lu_k_gr_bmap_at(LU_CTX, t0 + 1);
+            if (!(db > da)) continue;
+            /* depth along the light ray falls by s as the shadow ray advances s towards the light */
+            float dx = uvd.z, dl = uvd.z - dist;
+            if (da > dl && da < dx) ft *= lu_k_gr_bmap_at(LU_CTX, t0 + 2);
+            if (db > dl && db < dx) ft *= lu_k_gr_bmap_at(LU_CTX, t0 + 3);
+            lo = dx - lu_min(db, dx);
+            hi = dx - lu_max(da, dl);
+            if (!(hi > lo)) continue;
+        }
+        float a = 0.0f, b = 0.0f;
+        if (!lu_k_box_clip(md.bounds_lo, md.bounds_hi, x, wl, lo, hi, LU_REF(a), LU_REF(b))) continue;
+        float od = md.constant != 0 ? md.density_scale * (b - a)
+                                    : lu_k_optical_depth(LU_CTX, m, lu_k_medium_point(md, x), lu_k_medium_vector(md, wl), a, b,
+                                                         md.max_pieces);
+        tau = lu_v3_madd(tau, lu_k_medium_sigma_t(md), od);
+    }
+    return lu_v3_scale(lu_v3_exp(lu_v3_neg(tau)), ft);
+}
+
 /* The march uses this source term only when lu_raymarch.h was not included
  * before (a driver includes lu_gradient.h alone). */
 #ifndef LU_RAYMARCH_H
 #define LU_K_RM_INSCATTER lu_k_gr_inscatter
+#define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_gr_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist)
 #endif
 #include "lu_raymarch.h"
 
@@ -181,7 +253,9 @@ LU_FN vec3 lu_k_gr_field_at(LU_CTX_PARAM, lu_k_gr_params G, vec3 x) {
         float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), G.map_res);
         vec3 T = lu_v3s(0.0f);
         if (vis > 0.0f)
-            T = lu_v3_scale(lu_k_gr_transmittance(LU_CTX, x, ls.wl, ls.dist, G.delta1), vis);
+            T = lu_v3_scale(G.delta1 > 0.0f ? lu_k_gr_transmittance(LU_CTX, x, ls.wl, ls.dist, G.delta1)
+                                            : lu_k_gr_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist),
+                            vis);
         A = lu_v3_add(A, T);
         J = lu_v3_add(J, lu_v3_scale(lu_v3_mul(ls.irradiance, T), lu_k_phase_hg(lu_v3_dot(d, ls.wl), G.g)));
     }

@@ -23,7 +23,9 @@ struct lu_k_gr_params {
     int cx, cy, cz;    /* cell-list size */
     int mode;          /* LU_K_GR_* */
     int map_res;       /* shadow map resolution */
-    int pad0, pad1, pad2;
+    int bviews_at;     /* boundary-map buffer: where the views start (lu_k_gr_bmap_at) */
+    int bmaps_at;      /* ... where the maps start */
+    int bview_count;   /* 0: no bounded medium, shadow rays clip media to their boxes */
 };
 LU_TYPEDEF(lu_k_gr_params)
 

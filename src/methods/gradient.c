@@ -64,6 +64,7 @@ static inline lu_vec3 lu_k_gr_field(const struct lu_k_ctx *c, int i) {
     const float *f = c->field + 3 * (size_t)i;
     return lu_v3(f[0], f[1], f[2]);
 }
+static inline float lu_k_gr_bmap_at(const struct lu_k_ctx *c, int k) { return c->mr->bmap[k]; }
 static inline int lu_k_gr_cell_begin(const struct lu_k_ctx *c, int cell) { return c->cell_begin[cell]; }
 static inline int lu_k_gr_cell_end(const struct lu_k_ctx *c, int cell) { return c->cell_begin[cell + 1]; }
 static inline int lu_k_gr_cell_item(const struct lu_k_ctx *c, int k) { return c->cell_items[k]; }
@@ -75,6 +76,7 @@ static inline float lu_k_gr_sample_fetch(const struct lu_k_ctx *c, int j, int k)
 #include "kernels/lu_sampling.h"
 
 _Static_assert(LU_K_RM_HIT_FLOATS == LU_MR_HIT_FLOATS, "hit record size");
+_Static_assert(LU_MR_BMAP_FLOATS == 4, "lu_k_gr_light_transmittance reads 4 floats per texel");
 _Static_assert(LU_K_RM_MAX_MEDIA == 8, "lu_k_gr_inscatter takes dens[8]");
 
 /* ---- parameters: pervoxel's are the first P_PERVOXEL_COUNT ---- */
@@ -604,6 +606,7 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
     st->nl = lu_scene_kernel_lights(scene, kl);
     lu_result r = lu_media_rays_camera(&st->mr, scene, st->cam, err);
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, scene, kl, st->nl, err);
+    if (r == LU_OK) r = lu_media_rays_boundary_maps(&st->mr, scene, kl, st->nl, err);
     if (r != LU_OK) return r;
     lu_gradient_stats keep = st->stats;
     memset(&st->stats, 0, sizeof st->stats);
@@ -638,6 +641,9 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
     G.rbf_floor = 1e-6f;
     G.mode = st->mode;
     G.map_res = st->mr.shadow_res;
+    G.bviews_at = st->mr.bmap_views_at;
+    G.bmaps_at = st->mr.bmap_maps_at;
+    G.bview_count = st->mr.bmap_view_count;
     st->stats.grid[0] = G.nx, st->stats.grid[1] = G.ny, st->stats.grid[2] = G.nz;
     st->kctx = (struct lu_k_ctx){st->dens, st->km, st->nm, st->kl, st->nl, &st->mr, G, NULL, NULL, NULL, NULL};
 

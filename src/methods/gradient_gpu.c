@@ -11,7 +11,7 @@
 #include "methods/gradient.h"
 
 /* Bindings above the scene: the media-ray inputs (as raymarch.comp), then this method's. */
-enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SAMPLES, B_CELLS, B_ITEMS, B_FIELD, B_PARAMS, B_ET, B_COUNT };
+enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SAMPLES, B_CELLS, B_ITEMS, B_FIELD, B_PARAMS, B_ET, B_BMAP, B_COUNT };
 enum { PASS_EVAL = 0, PASS_FIELD = 1, PASS_MARCH = 2 };
 
 struct lu_gradient_gpu {
@@ -19,8 +19,8 @@ struct lu_gradient_gpu {
     lu_gpu_program *prog;
     lu_gpu_scene *scene;
     lu_gpu_buffer *buf[B_COUNT];
-    unsigned maps_version;
-    bool maps_uploaded;
+    unsigned maps_version, bmap_version;
+    bool maps_uploaded, bmap_uploaded;
 };
 
 lu_result lu_gradient_gpu_create(const lu_scene *scene, lu_gradient_gpu **out, lu_error *err) {
@@ -67,6 +67,13 @@ static lu_result bind_common(lu_gradient_gpu *g, const lu_scene *scene, const lu
         r = put(g, B_SHADOW, same ? NULL : mr->shadow, (size_t)mr->view_count * texels * sizeof(float), err);
         g->maps_uploaded = r == LU_OK;
         g->maps_version = mr->maps_version;
+    }
+    if (r == LU_OK) {
+        /* Boundary maps, likewise. */
+        bool same = g->bmap_uploaded && g->bmap_version == mr->bmap_version;
+        r = put(g, B_BMAP, same ? NULL : mr->bmap, mr->bmap_floats * sizeof(float), err);
+        g->bmap_uploaded = r == LU_OK;
+        g->bmap_version = mr->bmap_version;
     }
     if (r == LU_OK) r = put(g, B_PARAMS, &f->G, sizeof f->G, err);
     if (r != LU_OK) return r;

@@ -57,6 +57,8 @@ void lu_media_rays_free(lu_media_rays *mr) {
     free(mr->view_table);
     free(mr->shadow);
     free(mr->maps_lights);
+    free(mr->bmap);
+    free(mr->bmap_lights);
     memset(mr, 0, sizeof *mr);
 }
 
@@ -241,5 +243,93 @@ lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_scene *scene, const lu_
     mr->maps_nl = nl;
     mr->maps_valid = true;
     mr->maps_version++;
+    return LU_OK;
+}
+
+/* ---- boundary maps ---- */
+
+typedef struct bmap_job {
+    const lu_media_rays *mr;
+    const lu_scene *scene;
+    const lu_k_lightview *views;
+} bmap_job;
+
+static void bmap_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    (void)thread;
+    const bmap_job *j = ctx;
+    const lu_media_rays *mr = j->mr;
+    int res = mr->shadow_res, nm = mr->medium_count;
+    for (int64_t row = begin; row < end; row++) {
+        int y = (int)(row % res), m = (int)((row / res) % nm), v = (int)(row / ((int64_t)res * nm));
+        float *out = mr->bmap + mr->bmap_maps_at + (((size_t)v * nm + m) * res + y) * (size_t)res * LU_MR_BMAP_FLOATS;
+        const lu_k_lightview *vw = &j->views[v];
+        const lu_accel *acc = mr->boundary[m];
+        float eta = j->scene->media[m].eta;
+        /* A light inside the boundary (perspective views start at the light): the segment starts there. */
+        bool light_inside = acc && !vw->ortho && lu_accel_inside(acc, vw->origin);
+        for (int i = 0; i < res; i++) {
+            float *t = out + (size_t)i * LU_MR_BMAP_FLOATS;
+            t[0] = 1.0f, t[1] = 0.0f, t[2] = 1.0f, t[3] = 1.0f;
+            if (!acc) continue;
+            lu_k_lightray ray = lu_k_lightview_ray(*vw, ((float)i + 0.5f) / (float)res, ((float)y + 0.5f) / (float)res);
+            lu_hit hs[2];
+            int n = lu_accel_all_hits(acc, ray.origin, ray.dir, 0.0f, LU_K_FAR, hs, 2);
+            /* depth along the texel's ray is t for both view kinds (unit dir; ortho rays start on the view plane) */
+            if (light_inside) {
+                t[0] = 0.0f;
+                t[1] = n > 0 ? hs[0].t : LU_K_FAR;
+                t[3] = n > 0 ? lu_k_fresnel_transmittance(lu_v3_dot(hs[0].ng, ray.dir), eta) : 1.0f;
+            } else if (n > 0) {
+                t[0] = hs[0].t;
+                t[1] = n > 1 ? hs[1].t : LU_K_FAR;
+                t[2] = lu_k_fresnel_transmittance(lu_v3_dot(hs[0].ng, ray.dir), eta);
+                t[3] = n > 1 ? lu_k_fresnel_transmittance(lu_v3_dot(hs[1].ng, ray.dir), eta) : 1.0f;
+            }
+        }
+    }
+}
+
+lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_scene *scene, const lu_k_light *kl, int nl,
+                                      lu_error *err) {
+    if (mr->bmap_valid && nl == mr->bmap_nl && memcmp(mr->bmap_lights, kl, (size_t)nl * sizeof *kl) == 0) return LU_OK;
+    bool bounded = false;
+    for (int m = 0; m < mr->medium_count; m++) bounded = bounded || mr->boundary[m];
+    free(mr->bmap);
+    free(mr->bmap_lights);
+    mr->bmap = NULL;
+    mr->bmap_floats = 0;
+    mr->bmap_view_count = 0;
+    mr->bmap_valid = false;
+    size_t nls = nl ? (size_t)nl : 1u;
+    mr->bmap_lights = malloc(nls * sizeof *kl);
+    if (!mr->bmap_lights) return lu_fail(err, LU_ERR_NOMEM, "out of memory for boundary maps");
+    lu_k_lightview *views = NULL;
+    float *packed = NULL;
+    int *table = NULL, count = 0;
+    lu_result r = LU_OK;
+    if (bounded) r = lu_lightviews_for_scene(scene, lu_scene_bounds(scene), 1.0f, &views, &packed, &table, &count, err);
+    if (r == LU_OK) {
+        size_t texels = (size_t)mr->shadow_res * mr->shadow_res;
+        mr->bmap_views_at = (int)(2 * nls);
+        mr->bmap_maps_at = mr->bmap_views_at + count * LU_RM_VIEW_FLOATS;
+        mr->bmap_floats = (size_t)mr->bmap_maps_at + (size_t)count * mr->medium_count * texels * LU_MR_BMAP_FLOATS;
+        mr->bmap = calloc(mr->bmap_floats, sizeof(float));
+        if (!mr->bmap) r = lu_fail(err, LU_ERR_NOMEM, "out of memory for boundary maps");
+    }
+    if (r == LU_OK && bounded) {
+        for (int l = 0; l < 2 * nl; l++) mr->bmap[l] = (float)table[l];
+        memcpy(mr->bmap + mr->bmap_views_at, packed, (size_t)count * LU_RM_VIEW_FLOATS * sizeof(float));
+        mr->bmap_view_count = count;
+        bmap_job j = {mr, scene, views};
+        lu_parallel_for((int64_t)count * mr->medium_count * mr->shadow_res, 8, bmap_rows, &j, NULL);
+    }
+    free(views);
+    free(packed);
+    free(table);
+    if (r != LU_OK) return r;
+    if (nl) memcpy(mr->bmap_lights, kl, (size_t)nl * sizeof *kl);
+    mr->bmap_nl = nl;
+    mr->bmap_valid = true;
+    mr->bmap_version++;
     return LU_OK;
 }

@@ -54,7 +54,23 @@ typedef struct lu_media_rays {
     int maps_nl;
     bool maps_valid;
     unsigned maps_version;       /* changes whenever views or shadow maps are rebuilt */
+    /* boundary maps (lu_media_rays_boundary_maps), rebuilt when the lights change:
+     * one float buffer, LU_MR_BMAP_HEADER: [view table as floats (2 per light)]
+     * [views, LU_RM_VIEW_FLOATS each][maps: view * medium_count + m, res x res
+     * texels of LU_MR_BMAP_FLOATS]; offsets in bmap_views_at, bmap_maps_at */
+    float *bmap;
+    size_t bmap_floats;
+    int bmap_views_at, bmap_maps_at, bmap_view_count;
+    lu_k_light *bmap_lights;
+    int bmap_nl;
+    bool bmap_valid;
+    unsigned bmap_version;
 } lu_media_rays;
+
+/* Floats per boundary-map texel: depth a < depth b of the light ray's segment
+ * inside the medium's boundary (b <= a: none), F_t at a, F_t at b (1 where the
+ * segment ends at the light rather than at a crossing). */
+#define LU_MR_BMAP_FLOATS 4
 
 /* Builds the accelerations (opaque objects, boundary meshes). */
 lu_result lu_media_rays_init(lu_media_rays *mr, const lu_scene *scene, int shadow_res, bool want_normals,
@@ -67,6 +83,13 @@ lu_result lu_media_rays_camera(lu_media_rays *mr, const lu_scene *scene, lu_k_ca
 /* Light views and shadow maps for the kernel lights kl[0..nl) (scene order,
  * environment lights left out). */
 lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_scene *scene, const lu_k_light *kl, int nl, lu_error *err);
+
+/* Boundary maps of the bounded media for the kernel lights kl[0..nl) (see
+ * the struct): shadow rays can then clip a bounded medium to its boundary
+ * (exactly for a convex one) and carry the Fresnel transmittance of each
+ * crossing, as the reference does. No bounded medium: bmap_view_count 0. */
+lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_scene *scene, const lu_k_light *kl, int nl,
+                                      lu_error *err);
 
 /* Exact opaque visibility (Embree occlusion) of the kernel lights kl[0..nl)
  * at every camera ray's surface hit, offset by eps along the geometric

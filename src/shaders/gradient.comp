@@ -22,6 +22,7 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 8) readonly buffer Items { int 
 layout(std430, binding = LU_SCENE_BINDING_FREE + 9) buffer Field { float gr_field[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 10) readonly buffer Params { lu_k_gr_params gr_par; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 11) buffer ErrTau { float gr_et[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 12) readonly buffer BMap { float gr_bmap[]; };
 
 uniform int u_pass;
 uniform int u_count;
@@ -53,6 +54,7 @@ float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) {
 }
 lu_k_gr_params lu_k_gr_get(LU_CTX_PARAM) { return gr_par; }
 vec3 lu_k_gr_field(LU_CTX_PARAM, int i) { return vec3(gr_field[3 * i], gr_field[3 * i + 1], gr_field[3 * i + 2]); }
+float lu_k_gr_bmap_at(LU_CTX_PARAM, int k) { return gr_bmap[k]; }
 int lu_k_gr_cell_begin(LU_CTX_PARAM, int c) { return gr_cells[c]; }
 int lu_k_gr_cell_end(LU_CTX_PARAM, int c) { return gr_cells[c + 1]; }
 int lu_k_gr_cell_item(LU_CTX_PARAM, int k) { return gr_items[k]; }
