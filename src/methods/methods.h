@@ -10,6 +10,7 @@ extern const lu_method lu_method_reference;
 extern const lu_method lu_method_bssrdf;
 extern const lu_method lu_method_pathtrace;
 extern const lu_method lu_method_raymarch;
+extern const lu_method lu_method_ddod;
 
 /* The kernel-side light record (cone angles as cosines). */
 static inline lu_k_light lu_light_to_kernel(const lu_light *l) {

@@ -1,0 +1,272 @@
+/* ddod: SH projection of known functions (closed forms and independent
+ * quadrature), the Gaussian line integral against quadrature, Poisson-disk
+ * radii and count, the precomputed attenuation of a homogeneous sphere
+ * against its analytic chord, the cache round trip and its errors, and
+ * images against `reference` (and GPU against CPU). */
+#include <lucent/lucent.h>
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "lu_test.h"
+#include "methods/ddod.h"
+#include "methods/methods.h"
+#include "kernels/lu_medium.h"
+
+/* No context is needed for the pure functions of the kernel. */
+struct lu_k_ctx {
+    const float *sh;
+};
+static inline float lu_k_ddod_coeff(const struct lu_k_ctx *c, int index) { return c->sh[index]; }
+static inline float lu_k_ddod_sample_f(const struct lu_k_ctx *c, int i, int k) { return 0.0f; }
+static inline lu_vec3 lu_k_ddod_radiance(const struct lu_k_ctx *c, int i) { return lu_v3s(0.0f); }
+static inline float lu_k_ddod_pixel_f(const struct lu_k_ctx *c, int pixel, int k) { return 0.0f; }
+static inline int lu_k_ddod_tile_start(const struct lu_k_ctx *c, int tile) { return 0; }
+static inline int lu_k_ddod_tile_item(const struct lu_k_ctx *c, int k) { return 0; }
+static inline lu_vec3 lu_k_ddod_env_coeff(const struct lu_k_ctx *c, int k) { return lu_v3s(0.0f); }
+static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) {
+    lu_k_medium k;
+    memset(&k, 0, sizeof k);
+    return k;
+}
+static inline int lu_k_light_count(const struct lu_k_ctx *c) { return 0; }
+static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) {
+    lu_k_light k;
+    memset(&k, 0, sizeof k);
+    return k;
+}
+#include "kernels/lu_ddod.h"
+
+/* Gauss-Legendre nodes/weights on [-1, 1]. */
+static void gauss_legendre(int n, double *x, double *w) {
+    for (int i = 0; i < n; i++) {
+        double z = cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 1.0;
+        for (int it = 0; it < 100; it++) {
+            double p0 = 1.0, p1 = z;
+            for (int k = 2; k <= n; k++) {
+                double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
+                p0 = p1;
+                p1 = p2;
+            }
+            dp = n * (z * p1 - p0) / (z * z - 1);
+            double dz = p1 / dp;
+            z -= dz;
+            if (fabs(dz) < 1e-15) break;
+        }
+        x[i] = z;
+        w[i] = 2.0 / ((1 - z * z) * dp * dp);
+    }
+}
+
+static double legendre_p(int l, double x) {
+    double p0 = 1.0, p1 = x;
+    if (l == 0) return 1.0;
+    for (int k = 2; k <= l; k++) {
+        double p2 = ((2 * k - 1) * x * p1 - (k - 1) * p0) / k;
+        p0 = p1;
+        p1 = p2;
+    }
+    return p1;
+}
+
+/* Zonal coefficients c_l = 2 pi K_l int_{-1}^{1} f(mu) P_l(mu) dmu of a
+ * function of cos(theta) about z, by 400-node Gauss-Legendre. */
+static void zonal_coeffs(double (*f)(double, double), double param, int bands, double *c) {
+    enum { N = 400 };
+    static double x[N], w[N];
+    static bool ready = false;
+    if (!ready) gauss_legendre(N, x, w), ready = true;
+    for (int l = 0; l < bands; l++) {
+        double s = 0.0;
+        for (int i = 0; i < N; i++) s += w[i] * f(x[i], param) * legendre_p(l, x[i]);
+        c[l] = 2.0 * M_PI * sqrt((2 * l + 1) / (4.0 * M_PI)) * s;
+    }
+}
+
+static double f_lobe(double mu, double k) { return exp(-k * (1.0 - mu)); }  /* exp(-tau) lobe about z */
+
+static void test_sh_projection(void) {
+    enum { N = 2048 };
+    lu_vec3 *dirs = malloc(N * sizeof *dirs);
+    float *f = malloc(N * sizeof *f);
+    lu_ddod_directions(N, dirs);
+    float c[LU_SH_MAX_COEFFS];
+    /* constant: only Y_00 = 1 / (2 sqrt(pi)), exactly (the Fibonacci set's
+     * z values are symmetric, so odd bands vanish to rounding) */
+    for (int j = 0; j < N; j++) f[j] = 0.7f;
+    lu_ddod_sh_project(N, dirs, f, 6, c);
+    CHECK_NEAR(c[0], 0.7 * 2.0 * sqrt(M_PI), 1e-5);
+    double worst = 0.0;
+    for (int k = 1; k < 36; k++) worst = fmax(worst, fabs(c[k]));
+    CHECK_MSG(worst < 2e-3, "constant leaks %.3g into higher bands", worst);
+    /* clamped cosine lobe: c_l0 = K_l A_l (Ramamoorthi-Hanrahan A_l, lu_sh.h) */
+    for (int j = 0; j < N; j++) f[j] = fmaxf(dirs[j].z, 0.0f);
+    lu_ddod_sh_project(N, dirs, f, 6, c);
+    for (int l = 0; l < 6; l++) {
+        double want = sqrt((2 * l + 1) / (4.0 * M_PI)) * lu_k_sh_lambert_band(l);
+        CHECK_NEAR(c[l * (l + 1)], want, 3e-3);
+    }
+    /* narrow exp(-tau) lobes: the projected coefficients match independent
+     * quadrature, and the reconstruction's L2 error over the sphere is the
+     * truncation bound sqrt(int f^2 - sum c_l^2) of its order (Parseval). */
+    double ks[2] = {2.0, 8.0};
+    for (int t = 0; t < 2; t++) {
+        double k = ks[t], zc[6];
+        zonal_coeffs(f_lobe, k, 6, zc);
+        for (int j = 0; j < N; j++) f[j] = (float)f_lobe(dirs[j].z, k);
+        lu_ddod_sh_project(N, dirs, f, 6, c);
+        for (int l = 0; l < 6; l++) CHECK_NEAR(c[l * (l + 1)], zc[l], 2e-3 * (1.0 + fabs(zc[0])));
+        double f2 = (1.0 - exp(-4.0 * k)) * 2.0 * M_PI / (2.0 * k); /* int exp(-2k(1-mu)) */
+        for (int bands = 3; bands <= 6; bands++) {
+            double bound = f2;
+            for (int l = 0; l < bands; l++) bound -= zc[l] * zc[l];
+            bound = sqrt(fmax(bound, 0.0));
+            double e2 = 0.0;
+            struct lu_k_ctx ctx = {c};
+            lu_ddod_sh_project(N, dirs, f, bands, c);
+            for (int j = 0; j < N; j++) {
+                double d = lu_k_ddod_sh_dot(&ctx, 0, bands, dirs[j]) - f[j];
+                e2 += d * d * 4.0 * M_PI / N;
+            }
+            fprintf(stderr, "  exp(-%g(1-cos)) lobe, %d bands: L2 error %.4f, truncation bound %.4f\n", k, bands,
+                    sqrt(e2), bound);
+            CHECK(sqrt(e2) <= 1.02 * bound + 1e-3);
+        }
+    }
+    /* the kernel's erf (A&S 7.1.26, 1.5e-7, plus float rounding) against libm */
+    for (double x = -3.0; x <= 3.0; x += 0.25) CHECK_NEAR(lu_k_erf((float)x), erf(x), 5e-7);
+    free(dirs);
+    free(f);
+}
+
+static void test_gauss_line(void) {
+    lu_vec3 b = lu_v3(0.3f, -0.2f, 0.5f);
+    float s = 0.17f;
+    for (int t = 0; t < 20; t++) {
+        lu_vec3 o = lu_v3(-1.0f + 0.1f * t, 0.05f * t - 0.4f, -2.0f);
+        lu_vec3 d = lu_v3_norm(lu_v3(0.1f * (t % 5) - 0.2f, 0.03f * t - 0.3f, 1.0f));
+        float t0 = 1.0f + 0.05f * t, t1 = 3.5f - 0.07f * t;
+        /* 20000-point midpoint rule of the Gaussian along the segment */
+        double q = 0.0;
+        int n = 20000;
+        for (int i = 0; i < n; i++) {
+            double tt = t0 + (t1 - t0) * (i + 0.5) / n;
+            double x = o.x + tt * d.x - b.x, y = o.y + tt * d.y - b.y, z = o.z + tt * d.z - b.z;
+            q += exp(-(x * x + y * y + z * z) / (2.0 * s * s));
+        }
+        q *= (t1 - t0) / n;
+        CHECK_NEAR(lu_k_ddod_gauss_line(o, d, b, s, t0, t1), q, 1e-6 + 1e-5 * q);
+    }
+    CHECK(lu_k_ddod_gauss_line(lu_v3s(0.0f), lu_v3(0, 0, 1), b, s, 2.0f, 1.0f) == 0.0f);
+}
+
+static void test_poisson(void) {
+    /* radius grows along x from 0.03 to 0.12 over a 1 x 0.5 x 0.5 box */
+    int n[3] = {40, 20, 20};
+    float h = 0.025f;
+    size_t nv = (size_t)n[0] * n[1] * n[2];
+    float *rad = malloc(nv * sizeof *rad);
+    for (int z = 0; z < n[2]; z++)
+        for (int y = 0; y < n[1]; y++)
+            for (int x = 0; x < n[0]; x++) rad[((size_t)z * n[1] + y) * n[0] + x] = 0.03f + 0.09f * (x + 0.5f) / n[0];
+    lu_ddod_field f = {{n[0], n[1], n[2]}, lu_v3s(0.0f), h, rad};
+    float *pts, *r;
+    int count;
+    lu_error err;
+    CHECK_OK(lu_ddod_poisson(&f, 1.0f, 40000, 7, &pts, &r, &count, &err), &err);
+    int bad = 0;
+    for (int i = 0; i < count; i++)
+        for (int j = i + 1; j < count; j++) {
+            float dx = pts[3 * i] - pts[3 * j], dy = pts[3 * i + 1] - pts[3 * j + 1], dz = pts[3 * i + 2] - pts[3 * j + 2];
+            float m = fmaxf(r[i], r[j]);
+            bad += dx * dx + dy * dy + dz * dz < m * m;
+        }
+    CHECK_MSG(bad == 0, "%d pairs closer than their radius", bad);
+    /* every point's radius is its voxel's */
+    int wrong = 0, left = 0;
+    for (int i = 0; i < count; i++) {
+        int x = (int)(pts[3 * i] / h);
+        wrong += fabsf(r[i] - (0.03f + 0.09f * (x + 0.5f) / n[0])) > 1e-6f;
+        left += pts[3 * i] < 0.5f;
+    }
+    CHECK(wrong == 0);
+    /* denser where the radius is smaller */
+    CHECK_MSG(left > 2 * (count - left), "%d of %d points in the small-radius half", left, count);
+    free(pts);
+    free(r);
+    free(rad);
+}
+
+static const char *k_sphere =
+    "{\"camera\": {\"position\": [0, 0.6, 3.6], \"look_at\": [0, 0, 0], \"fov_y_deg\": 40, \"width\": 40, \"height\": 40},"
+    " \"lights\": [{\"type\": \"point\", \"position\": [2.5, 2.0, 2.0], \"intensity\": [60, 60, 60]},"
+    "              {\"type\": \"point\", \"position\": [-2.0, 1.0, -2.5], \"intensity\": [30, 30, 30]}],"
+    " \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": 1.6, \"sigma_a\": 0.1,"
+    "   \"boundary\": {\"mesh\": {\"procedural\": \"sphere\", \"radius\": 1.0, \"subdivisions\": 5}, \"eta\": 1.3}}]}";
+
+/* The chord from b to a unit sphere along w: -b.w + sqrt((b.w)^2 - |b|^2 + 1). */
+static double chord(lu_vec3 b, lu_vec3 w) {
+    double bw = lu_v3_dot(b, w), bb = lu_v3_dot(b, b);
+    return -bw + sqrt(bw * bw - bb + 1.0);
+}
+
+static void test_sphere_attenuation(void) {
+    lu_scene s;
+    lu_error err;
+    CHECK_OK(lu_scene_load_string(k_sphere, "sphere.json", &s, &err), &err);
+    lu_ddod_params p = {48, 512, 3000, 6, 0.6f, 1};
+    lu_ddod_set set;
+    CHECK_OK(lu_ddod_compute(&s, &p, &set, &err), &err);
+    CHECK_MSG(abs(set.count - p.samples) <= p.samples / 10, "%d samples for a target of %d", set.count, p.samples);
+    CHECK(set.channels == 1 && set.stride == 2 * 36);
+    /* Every sample inside the sphere; psi from the SH against exp(-sigma_t
+     * chord) and psi^F against the same times F_t at the exit: RMS over
+     * samples and directions, deep samples (|b| < 0.6: smooth functions)
+     * and all. */
+    double e_deep = 0.0, e_all = 0.0, ef_deep = 0.0;
+    int n_deep = 0, n_all = 0, outside = 0;
+    struct lu_k_ctx ctx = {set.sh};
+    lu_vec3 dirs[64];
+    lu_ddod_directions(64, dirs);
+    for (int i = 0; i < set.count; i++) {
+        const float *sm = set.samples + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+        lu_vec3 b = lu_v3(sm[0], sm[1], sm[2]);
+        outside += lu_v3_len(b) > 1.0f;
+        bool deep = lu_v3_len(b) < 0.6f;
+        for (int j = 0; j < 64; j++) {
+            lu_vec3 w = lu_v3_norm(lu_v3(dirs[j].x + 0.1f, dirs[j].y, dirs[j].z - 0.05f));
+            double c = chord(b, w), want = exp(-1.7 * c);
+            lu_vec3 x = lu_v3_madd(b, w, (float)c);
+            double wantf = want * lu_k_fresnel_transmittance(lu_v3_dot(lu_v3_norm(x), w), 1.3f);
+            double got = lu_k_ddod_sh_dot(&ctx, i * set.stride, 6, w);
+            double gotf = lu_k_ddod_sh_dot(&ctx, i * set.stride + 36, 6, w);
+            e_all += (got - want) * (got - want);
+            n_all++;
+            if (deep) {
+                e_deep += (got - want) * (got - want);
+                ef_deep += (gotf - wantf) * (gotf - wantf);
+                n_deep++;
+            }
+        }
+    }
+    e_deep = sqrt(e_deep / n_deep);
+    ef_deep = sqrt(ef_deep / n_deep);
+    e_all = sqrt(e_all / n_all);
+    fprintf(stderr, "  sphere psi RMS error: deep %.4f (with Fresnel %.4f), all %.4f\n", e_deep, ef_deep, e_all);
+    CHECK(outside == 0);
+    CHECK(e_deep < 0.01);
+    CHECK(ef_deep < 0.01);
+    CHECK(e_all < 0.05);
+    lu_ddod_set_free(&set);
+    lu_scene_destroy(&s);
+}
+
+int main(void) {
+    RUN_TEST(test_sh_projection);
+    RUN_TEST(test_gauss_line);
+    RUN_TEST(test_poisson);
+    RUN_TEST(test_sphere_attenuation);
+    TEST_EXIT();
+}
