@@ -31,7 +31,14 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "int lu_k_rm_view_count(LU_CTX_PARAM, int l) { return 0; }\n"
                                 "lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v) { lu_k_lightview w; w.ortho = 1; return w; }\n"
                                 "float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) { return float(end); }\n"
-                                "float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return -1.0; }\n");
+                                "float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return -1.0; }\n"
+                                "float lu_k_ddod_sample_f(LU_CTX_PARAM, int i, int k) { return 1.0; }\n"
+                                "float lu_k_ddod_coeff(LU_CTX_PARAM, int i) { return 0.5; }\n"
+                                "vec3 lu_k_ddod_radiance(LU_CTX_PARAM, int i) { return vec3(1.0); }\n"
+                                "float lu_k_ddod_pixel_f(LU_CTX_PARAM, int pixel, int k) { return 0.0; }\n"
+                                "int lu_k_ddod_tile_start(LU_CTX_PARAM, int tile) { return 0; }\n"
+                                "int lu_k_ddod_tile_item(LU_CTX_PARAM, int k) { return 0; }\n"
+                                "vec3 lu_k_ddod_env_coeff(LU_CTX_PARAM, int k) { return vec3(0.0); }\n");
     int count = 0;
     DIR *dir = opendir(LU_SOURCE_DIR "/src/kernels");
     CHECK(dir != NULL);
