@@ -216,7 +216,7 @@ static void test_sphere_attenuation(void) {
     lu_scene s;
     lu_error err;
     CHECK_OK(lu_scene_load_string(k_sphere, "sphere.json", &s, &err), &err);
-    lu_ddod_params p = {48, 512, 3000, 6, 0.6f, 1};
+    lu_ddod_params p = {48, 512, 3000, 6, 0.6f, 1, 0};
     lu_ddod_set set;
     CHECK_OK(lu_ddod_compute(&s, &p, &set, &err), &err);
     CHECK_MSG(abs(set.count - p.samples) <= p.samples / 10, "%d samples for a target of %d", set.count, p.samples);
@@ -263,10 +263,159 @@ static void test_sphere_attenuation(void) {
     lu_scene_destroy(&s);
 }
 
+static void test_cache(void) {
+    lu_scene s;
+    lu_error err;
+    CHECK_OK(lu_scene_load_string(k_sphere, "sphere.json", &s, &err), &err);
+    lu_ddod_params p = {24, 32, 400, 3, 0.8f, 1, 2};
+    lu_ddod_set a, b;
+    CHECK_OK(lu_ddod_compute(&s, &p, &a, &err), &err);
+    char path[256];
+    snprintf(path, sizeof path, "%s/test_ddod_cache_%d.bin", LU_BINARY_DIR, (int)getpid());
+    uint64_t key = lu_ddod_key(&s, &p);
+    CHECK_OK(lu_ddod_cache_save(path, key, &a, &err), &err);
+    CHECK_OK(lu_ddod_cache_load(path, key, &b, &err), &err);
+    CHECK(b.count == a.count && b.stride == a.stride && b.timing.from_cache);
+    CHECK(b.count > 0 && memcmp(a.samples, b.samples, (size_t)a.count * LU_K_DDOD_SAMPLE_FLOATS * 4) == 0);
+    CHECK(b.count > 0 && memcmp(a.sh, b.sh, (size_t)a.count * a.stride * 4) == 0);
+    lu_ddod_set_free(&b);
+    /* other inputs: another key */
+    lu_ddod_params q = p;
+    q.dirs = 64;
+    CHECK(lu_ddod_key(&s, &q) != key);
+    CHECK(lu_ddod_cache_load(path, lu_ddod_key(&s, &q), &b, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "key mismatch") && strstr(err.message, path), "%s", err.message);
+    /* flipped payload byte: checksum */
+    FILE *fp = fopen(path, "r+b");
+    CHECK(fp != NULL);
+    if (fp) {
+        fseek(fp, 200, SEEK_SET);
+        int c = fgetc(fp);
+        fseek(fp, 200, SEEK_SET);
+        fputc(c ^ 0x55, fp);
+        fclose(fp);
+    }
+    CHECK(lu_ddod_cache_load(path, key, &b, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "checksum"), "%s", err.message);
+    /* truncated */
+    CHECK(truncate(path, 300) == 0);
+    CHECK(lu_ddod_cache_load(path, key, &b, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "truncated"), "%s", err.message);
+    /* not a cache file */
+    fp = fopen(path, "wb");
+    if (fp) {
+        fputs("{\"camera\": 1}\n", fp);
+        for (int i = 0; i < 100; i++) fputs("padding padding padding\n", fp);
+        fclose(fp);
+    }
+    CHECK(lu_ddod_cache_load(path, key, &b, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "magic"), "%s", err.message);
+    /* the renderer reports it and fails (no silent recompute over a corrupt file) */
+    char dir[256];
+    snprintf(dir, sizeof dir, "%s/test_ddod_cache_dir_%d", LU_BINARY_DIR, (int)getpid());
+    setenv("LUCENT_CACHE_DIR", dir, 1);
+    lu_kvlist set = {0};
+    CHECK_OK(lu_kv_parse_assignment(&set, "ddod.res=24", &err), &err);
+    CHECK_OK(lu_kv_parse_assignment(&set, "ddod.dirs=32", &err), &err);
+    CHECK_OK(lu_kv_parse_assignment(&set, "ddod.samples=400", &err), &err);
+    CHECK_OK(lu_kv_parse_assignment(&set, "ddod.bands=3", &err), &err);
+    lu_renderer *r1 = NULL, *r2 = NULL;
+    CHECK_OK(lu_renderer_create("ddod", &s, &set, LU_BACKEND_CPU, &r1, &err), &err);   /* computes, writes */
+    CHECK_OK(lu_renderer_create("ddod", &s, &set, LU_BACKEND_CPU, &r2, &err), &err);   /* loads */
+    lu_ddod_stats st1, st2;
+    CHECK(lu_ddod_last_stats(r1, &st1) && !st1.precompute.from_cache);
+    CHECK(lu_ddod_last_stats(r2, &st2) && st2.precompute.from_cache && st2.samples == st1.samples);
+    lu_renderer_destroy(r1);
+    lu_renderer_destroy(r2);
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "for f in %s/ddod-*.bin; do printf 'garbage' > \"$f\"; done", dir);
+    CHECK(system(cmd) == 0);
+    CHECK(lu_renderer_create("ddod", &s, &set, LU_BACKEND_CPU, &r1, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "delete the file"), "%s", err.message);
+    snprintf(cmd, sizeof cmd, "rm -rf %s %s", dir, path);
+    CHECK(system(cmd) == 0);
+    unsetenv("LUCENT_CACHE_DIR");
+    lu_kv_free(&set);
+    lu_ddod_set_free(&a);
+    lu_scene_destroy(&s);
+}
+
+static const char *k_layered =
+    "{\"camera\": {\"position\": [2.4, 1.5, 3.2], \"look_at\": [0, 0, 0], \"fov_y_deg\": 38, \"width\": 40, \"height\": 40},"
+    " \"lights\": [{\"type\": \"point\", \"position\": [-2.2, 2.5, 2.0], \"intensity\": [36, 34, 30]},"
+    "              {\"type\": \"directional\", \"direction\": [0.3, 0.4, -1.0], \"irradiance\": [0.6, 0.7, 0.9]}],"
+    " \"media\": [{\"density\": {\"procedural\": \"layered_cube\", \"size\": [2, 2, 2], \"resolution\": 32,"
+    "   \"layers\": 6, \"low\": 0.15, \"high\": 1.0, \"axis\": 1},"
+    "   \"sigma_s\": [2.2, 2.0, 1.8], \"sigma_a\": [0.1, 0.12, 0.15],"
+    "   \"boundary\": {\"mesh\": {\"procedural\": \"box\", \"size\": [1.8, 1.8, 1.8]}, \"eta\": 1.3}}]}";
+
+static double rel_l2(const lu_image *a, const lu_image *b) {
+    double num = 0.0, den = 0.0;
+    for (size_t i = 0; i < (size_t)a->width * a->height * 3; i++) {
+        num += (a->rgb[i] - b->rgb[i]) * (double)(a->rgb[i] - b->rgb[i]);
+        den += (double)b->rgb[i] * b->rgb[i];
+    }
+    return sqrt(num / den);
+}
+
+static bool render(const lu_scene *s, const char *method, lu_backend be, const char *const *sets, lu_image *img) {
+    lu_error err;
+    lu_kvlist kv = {0};
+    for (int i = 0; sets && sets[i]; i++) CHECK_OK(lu_kv_parse_assignment(&kv, sets[i], &err), &err);
+    lu_renderer *r = NULL;
+    lu_result res = lu_renderer_create(method, s, &kv, be, &r, &err);
+    lu_kv_free(&kv);
+    if (res != LU_OK) {
+        if (be == LU_BACKEND_GPU) {
+            fprintf(stderr, "  GPU unavailable, skipped: %s\n", err.message);
+            return false;
+        }
+        CHECK_OK(res, &err);
+        return false;
+    }
+    CHECK_OK(lu_renderer_render(r, s, img, &err), &err);
+    lu_renderer_destroy(r);
+    return true;
+}
+
+/* ddod against the truth at reduced settings (the defaults are measured in
+ * docs/ddod.md): small images, fewer samples, so the tolerance is wider
+ * than the 2 % target. */
+static void test_images(void) {
+    const char *scenes[2] = {k_sphere, k_layered};
+    /* measured 0.034 (sphere) and 0.145 (layered cube: the SH of the
+     * attenuation cannot follow its sharp fall-off near the cube's faces and
+     * edges; docs/ddod.md) at these settings */
+    const double tol[2] = {0.05, 0.17};
+    const char *sets[] = {"ddod.res=48", "ddod.dirs=128", "ddod.samples=15000", "ddod.cache=0", NULL};
+    for (int k = 0; k < 2; k++) {
+        lu_scene s;
+        lu_error err;
+        CHECK_OK(lu_scene_load_string(scenes[k], "scene.json", &s, &err), &err);
+        lu_image ref = {0}, cpu = {0}, gpu = {0};
+        if (render(&s, "reference", LU_BACKEND_CPU, NULL, &ref) && render(&s, "ddod", LU_BACKEND_CPU, sets, &cpu)) {
+            double e = rel_l2(&cpu, &ref);
+            fprintf(stderr, "  scene %d: ddod vs reference rel-L2 %.4f\n", k, e);
+            CHECK(e < tol[k]);
+            if (lu_method_find("ddod")->backends & LU_BACKEND_GPU && render(&s, "ddod", LU_BACKEND_GPU, sets, &gpu)) {
+                double g = rel_l2(&gpu, &cpu);
+                fprintf(stderr, "  scene %d: GPU vs CPU rel-L2 %.2g\n", k, g);
+                CHECK(g < 1e-3);
+            }
+        }
+        lu_image_destroy(&ref);
+        lu_image_destroy(&cpu);
+        lu_image_destroy(&gpu);
+        lu_scene_destroy(&s);
+    }
+}
+
 int main(void) {
     RUN_TEST(test_sh_projection);
     RUN_TEST(test_gauss_line);
     RUN_TEST(test_poisson);
     RUN_TEST(test_sphere_attenuation);
+    RUN_TEST(test_cache);
+    RUN_TEST(test_images);
     TEST_EXIT();
 }

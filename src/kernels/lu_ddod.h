@@ -45,17 +45,6 @@
 #include "lu_sh.h"
 #include "lu_ddod_layout.h"
 
-struct lu_k_ddod_params {
-    int bands;        /* SH bands per function (bands^2 coefficients) */
-    int channels;     /* 1: grey sigma_t (psi shared by r, g, b), 3: per channel */
-    int stride;       /* coefficients per sample: 2 sets (view, light) x channels x bands^2 */
-    int normalize;    /* 1: Shepard-normalised line integrals (see above) */
-    int tile;         /* tile side in pixels */
-    int tiles_x;
-    int env;          /* 1: environment SH in lu_k_ddod_env_coeff */
-    int pad;
-};
-LU_TYPEDEF(lu_k_ddod_params)
 
 /* erf by Abramowitz & Stegun 7.1.26 (|error| < 1.5e-7): GLSL has no erf, and
  * one formula on both backends keeps them equal. */

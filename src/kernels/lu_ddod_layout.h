@@ -4,6 +4,8 @@
 #ifndef LU_DDOD_LAYOUT_H
 #define LU_DDOD_LAYOUT_H
 
+#include "lu_kernel.h"
+
 /* Floats per sample record. */
 #define LU_K_DDOD_SAMPLE_FLOATS 8
 #define LU_K_DDOD_SAMPLE_X 0        /* centre b_i (world), 3 floats */
@@ -19,5 +21,19 @@
 /* Gaussians are cut off at this many standard deviations (exp(-4.5) = 1.1 %). */
 #define LU_K_DDOD_CUTOFF 3.0f
 #define LU_K_DDOD_MAX_CHANNELS 3
+
+
+/* Per-frame constants of both passes. */
+struct lu_k_ddod_params {
+    int bands;        /* SH bands per function (bands^2 coefficients) */
+    int channels;     /* 1: grey sigma_t (psi shared by r, g, b), 3: per channel */
+    int stride;       /* coefficients per sample: 2 sets (view, light) x channels x bands^2 */
+    int normalize;    /* 1: Shepard-normalised line integrals (see above) */
+    int tile;         /* tile side in pixels */
+    int tiles_x;
+    int env;          /* 1: environment SH in lu_k_ddod_env_coeff */
+    int pad;
+};
+LU_TYPEDEF(lu_k_ddod_params)
 
 #endif

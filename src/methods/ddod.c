@@ -57,7 +57,7 @@ static inline lu_vec3 lu_k_ddod_env_coeff(const struct lu_k_ctx *c, int k) {
 #include "kernels/lu_ddod.h"
 #include "kernels/lu_march.h"
 
-enum { P_RES, P_DIRS, P_SAMPLES, P_BANDS, P_WIDTH, P_NORMALIZE, P_WINDOW, P_CACHE, P_SEED, P_COUNT };
+enum { P_RES, P_DIRS, P_SAMPLES, P_BANDS, P_WIDTH, P_FIT, P_NORMALIZE, P_WINDOW, P_CACHE, P_SEED, P_COUNT };
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_RES] = {"res", LU_PARAM_INT, 128, 8, 512, NULL,
@@ -68,8 +68,11 @@ static const lu_param_desc k_params[P_COUNT] = {
                    "target number of Poisson-disk samples N_s (met within 3 %)"},
     [P_BANDS] = {"bands", LU_PARAM_INT, 5, 2, 6, NULL,
                  "SH bands per attenuation function: 3, 4, 5, 6 = 9, 16, 25, 36 coefficients"},
-    [P_WIDTH] = {"width", LU_PARAM_FLOAT, 0.6, 0.2, 2.0, NULL,
+    [P_WIDTH] = {"width", LU_PARAM_FLOAT, 0.8, 0.2, 2.0, NULL,
                  "Gaussian standard deviation as a fraction of the sample's Poisson-disk radius"},
+    [P_FIT] = {"fit", LU_PARAM_INT, 8, 0, 50, NULL,
+               "partition-of-unity iterations on the Gaussians' amplitudes (0: each stands for its volume share, "
+               "as in the paper)"},
     [P_NORMALIZE] = {"normalize", LU_PARAM_BOOL, 1, 0, 1, NULL,
                      "divide each pixel's sum by its Gaussians' line integrals times the ray length in the medium "
                      "(partition of unity; off = the paper's plain sum)"},
@@ -180,6 +183,7 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
     p.bands = (int)params[P_BANDS];
     p.width = (float)params[P_WIDTH];
     p.seed = (uint32_t)params[P_SEED];
+    p.fit = (int)params[P_FIT];
     lu_result r = LU_OK;
     if (scene->medium_count > LU_SCENE_MAX_MEDIA)
         r = lu_fail(err, LU_ERR_LIMIT, "ddod: %d media (at most %d)", scene->medium_count, LU_SCENE_MAX_MEDIA);
@@ -193,7 +197,7 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
             int k = (int)(i % (size_t)nc), l = (int)sqrtf((float)k);
             st->sh[i] = st->set.sh[i] * window_weight((int)params[P_WINDOW], l, st->set.bands);
         }
-        for (int l = 0; l < scene->light_count; l++)
+        for (int l = 0; l < scene->light_count && r == LU_OK; l++)
             if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) {
                 env_project(&scene->lights[l], st->set.bands, st->env);
                 st->env_on = 1;
@@ -424,9 +428,8 @@ static lu_result ddod_render(void *state, const lu_scene *scene, lu_image *out, 
     st->P = P;
     double t3 = t2;
     if (st->backend == LU_BACKEND_GPU) {
-        lu_ddod_frame f = {c->width, c->height, P.bands, P.channels, P.stride, P.normalize, TILE, st->bins.tiles_x,
-                           st->bins.tiles_y, P.env, st->set.count, st->set.samples, st->sh, st->pixels,
-                           st->bins.start, st->bins.list, (size_t)st->bins.entries, st->env, 1u};
+        lu_ddod_frame f = {c->width, c->height, st->bins.tiles_y, P, st->set.count, st->set.samples, st->sh,
+                           st->pixels, st->bins.start, st->bins.list, (size_t)st->bins.entries, st->env, 1u};
         r = lu_ddod_gpu_render(st->gpu, scene, &f, out, err);
         if (r != LU_OK) return r;
     } else {

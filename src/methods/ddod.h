@@ -19,7 +19,9 @@
  *      each boundary crossing) for the n directions, with the boundary from
  *      ray casts (Embree: exact, not voxelised) and the density integral
  *      exact for constant media and from an unmasked sweep for grids;
- *      projected onto bands^2 real SH by the n-point quadrature.
+ *      projected onto bands^2 real SH by the n-point quadrature;
+ *   5. (extension) amplitudes A_i fitted so that sum_j A_j gamma_j(b_i) ~ 1
+ *      at every sample: `fit` damped Jacobi updates A_i <- A_i / S_i^0.7.
  * Results are cached on disk (see lu_ddod_cache_dir). */
 #ifndef LU_METHODS_DDOD_H
 #define LU_METHODS_DDOD_H
@@ -39,6 +41,7 @@ typedef struct lu_ddod_params {
     int bands;        /* SH bands (2..6: 4, 9, 16, 25, 36 coefficients) */
     float width;      /* Gaussian s_i as a fraction of the local Poisson radius */
     uint32_t seed;
+    int fit;          /* partition-of-unity iterations on the amplitudes (0: volume shares only) */
 } lu_ddod_params;
 
 typedef struct lu_ddod_timing {
@@ -98,8 +101,8 @@ lu_result lu_ddod_poisson(const lu_ddod_field *f, float scale, int candidates, u
 
 /* ---- rendering: one frame as both backends see it (built in ddod.c) ---- */
 typedef struct lu_ddod_frame {
-    int width, height;
-    int bands, channels, stride, normalize, tile, tiles_x, tiles_y, env;
+    int width, height, tiles_y;
+    lu_k_ddod_params P;
     int count;                 /* samples */
     const float *samples;      /* count * LU_K_DDOD_SAMPLE_FLOATS */
     const float *sh;           /* count * stride (windowed) */
@@ -113,7 +116,7 @@ typedef struct lu_ddod_frame {
 
 typedef struct lu_ddod_gpu lu_ddod_gpu;
 lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error *err);
-/* Runs both passes; `radiance` (count * 4 floats) receives pass 1's output when non-NULL. */
+/* Runs both passes into out (the pixel records, tiles and samples come from the CPU). */
 lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_ddod_frame *f, lu_image *out,
                              lu_error *err);
 void lu_ddod_gpu_destroy(lu_ddod_gpu *g);

@@ -12,7 +12,7 @@
 
 #include "methods/methods.h"
 
-#define DDOD_CACHE_VERSION 1
+#define DDOD_CACHE_VERSION 2
 #define DDOD_BLOCK_DENSITY 1.0e4f   /* per world unit: opaque voxels stop every ray */
 #define DDOD_FIX 1048576.0f         /* 2^20: fixed point of the first-moment sums */
 #define DDOD_MAX_CROSSINGS 64
@@ -540,6 +540,98 @@ static void psi_dirs(void *ctx, int64_t begin, int64_t end, int thread) {
     }
 }
 
+/* ---- step 5: partition of unity ---- */
+
+typedef struct pou_job {
+    float *rec;            /* sample records (LU_K_DDOD_SAMPLE_FLOATS each) */
+    int count;
+    lu_vec3 lo;
+    int cn[3], reach;
+    float cell;
+    const int *head, *next;
+    float *S;              /* per sample: sum of all Gaussians at its centre */
+} pou_job;
+
+static void pou_sums(void *ctx, int64_t begin, int64_t end, int thread) {
+    pou_job *j = ctx;
+    for (int64_t i = begin; i < end; i++) {
+        const float *si = j->rec + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+        lu_vec3 p = lu_v3(si[0], si[1], si[2]);
+        int c[3] = {(int)((p.x - j->lo.x) / j->cell), (int)((p.y - j->lo.y) / j->cell), (int)((p.z - j->lo.z) / j->cell)};
+        float sum = 0.0f;
+        for (int cz = c[2] - j->reach; cz <= c[2] + j->reach; cz++)
+            for (int cy = c[1] - j->reach; cy <= c[1] + j->reach; cy++)
+                for (int cx = c[0] - j->reach; cx <= c[0] + j->reach; cx++) {
+                    if (cx < 0 || cy < 0 || cz < 0 || cx >= j->cn[0] || cy >= j->cn[1] || cz >= j->cn[2]) continue;
+                    for (int q = j->head[((size_t)cz * j->cn[1] + cy) * j->cn[0] + cx]; q >= 0; q = j->next[q]) {
+                        const float *s = j->rec + (size_t)q * LU_K_DDOD_SAMPLE_FLOATS;
+                        float ddx = p.x - s[0], ddy = p.y - s[1], ddz = p.z - s[2], sd = s[LU_K_DDOD_SAMPLE_S];
+                        float d2 = ddx * ddx + ddy * ddy + ddz * ddz;
+                        if (d2 >= LU_K_DDOD_CUTOFF * LU_K_DDOD_CUTOFF * sd * sd) continue;
+                        sum += s[LU_K_DDOD_SAMPLE_AMP] * expf(-0.5f * d2 / (sd * sd));
+                    }
+                }
+        j->S[i] = sum;
+    }
+}
+
+/* `iters` damped Jacobi updates A_i <- A_i / S(b_i)^0.7 of the amplitudes
+ * towards sum_j A_j gamma_j(b_i) = 1 at every sample (see ddod.h, step 5). */
+static lu_result fit_partition(float *rec, int count, int iters, lu_error *err) {
+    if (iters <= 0 || count == 0) return LU_OK;
+    pou_job j;
+    memset(&j, 0, sizeof j);
+    j.rec = rec;
+    j.count = count;
+    float smax = 0.0f, ssum = 0.0f;
+    lu_vec3 lo = lu_v3s(1e30f), hi = lu_v3s(-1e30f);
+    for (int i = 0; i < count; i++) {
+        const float *s = rec + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+        smax = fmaxf(smax, s[LU_K_DDOD_SAMPLE_S]);
+        ssum += s[LU_K_DDOD_SAMPLE_S];
+        lo = lu_v3_min(lo, lu_v3(s[0], s[1], s[2]));
+        hi = lu_v3_max(hi, lu_v3(s[0], s[1], s[2]));
+    }
+    /* cells of the mean support radius; search as far as the largest reaches */
+    j.cell = fmaxf(LU_K_DDOD_CUTOFF * ssum / (float)count, 1e-6f);
+    lu_vec3 ext = lu_v3_sub(hi, lo);
+    for (int a = 0; a < 3; a++) j.cn[a] = (int)fminf(lu_v3_get(ext, a) / j.cell, 1000.0f) + 1;
+    j.cell = fmaxf(j.cell, fmaxf(ext.x / (float)j.cn[0], fmaxf(ext.y / (float)j.cn[1], ext.z / (float)j.cn[2])));
+    j.reach = (int)ceilf(LU_K_DDOD_CUTOFF * smax / j.cell);
+    j.lo = lo;
+    size_t ncell = (size_t)j.cn[0] * j.cn[1] * j.cn[2];
+    int *head = malloc(ncell * sizeof *head), *next = malloc((size_t)count * sizeof *next);
+    j.S = malloc((size_t)count * sizeof *j.S);
+    if (!head || !next || !j.S) {
+        free(head), free(next), free(j.S);
+        return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the partition fit");
+    }
+    for (size_t c = 0; c < ncell; c++) head[c] = -1;
+    for (int i = count - 1; i >= 0; i--) {
+        const float *s = rec + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+        int c[3];
+        float pv[3] = {s[0] - lo.x, s[1] - lo.y, s[2] - lo.z};
+        for (int a = 0; a < 3; a++) {
+            c[a] = (int)(pv[a] / j.cell);
+            c[a] = c[a] < 0 ? 0 : (c[a] >= j.cn[a] ? j.cn[a] - 1 : c[a]);
+        }
+        size_t ci = ((size_t)c[2] * j.cn[1] + c[1]) * j.cn[0] + c[0];
+        next[i] = head[ci];
+        head[ci] = i;
+    }
+    j.head = head;
+    j.next = next;
+    for (int it = 0; it < iters; it++) {
+        lu_parallel_for(count, 0, pou_sums, &j, NULL);
+        for (int i = 0; i < count; i++)
+            if (j.S[i] > 0.0f) rec[(size_t)i * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] /= powf(j.S[i], 0.7f);
+    }
+    free(head);
+    free(next);
+    free(j.S);
+    return LU_OK;
+}
+
 /* ---- one medium, end to end ---- */
 
 typedef struct valid_ctx {
@@ -741,7 +833,7 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
         lu_parallel_for(p->dirs, 1, psi_dirs, &pj, "ddod: sample optical depth");
         if (atomic_load(&pj.failed)) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory in ray queries");
     }
-    double t4 = lu_time_seconds();
+    double t4 = lu_time_seconds(), fit_s = 0.0;
     if (r == LU_OK) {
         int base = out->count;
         size_t total = (size_t)base + count;
@@ -769,13 +861,17 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
                 s[LU_K_DDOD_SAMPLE_MEDIUM] = (float)mi;
                 s[7] = 0.0f;
             }
+            double tf = lu_time_seconds();
+            r = fit_partition(out->samples + (size_t)base * LU_K_DDOD_SAMPLE_FLOATS, count, p->fit, err);
+            fit_s = lu_time_seconds() - tf;
+            out->timing.sampling_s += fit_s;
             sh_job sj = {dirs, p->dirs, out->bands, out->channels, out->stride, count, sigma_t, tau, ft,
                          out->sh + (size_t)base * out->stride};
-            lu_parallel_for(count, 0, sh_samples, &sj, NULL);
+            if (r == LU_OK) lu_parallel_for(count, 0, sh_samples, &sj, NULL);
             out->count = (int)total;
         }
     }
-    double t5 = lu_time_seconds();
+    double t5 = lu_time_seconds() - fit_s;
     out->timing.optical_depth_s += (t1 - t0) + (t4 - t3);
     out->timing.divergence_s += t2 - t1;
     out->timing.sampling_s += t3 - t2;
