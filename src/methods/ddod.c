@@ -456,7 +456,7 @@ const lu_method lu_method_ddod = {
     .name = "ddod",
     .summary = "direction-dependent optical depth samples with SH attenuation and Gaussian line integrals "
                "(Bernabei et al.; translucent bounded media; CPU and GPU, one kernel)",
-    .backends = LU_BACKEND_CPU,
+    .backends = LU_BACKEND_CPU | LU_BACKEND_GPU,
     .params = k_params,
     .param_count = P_COUNT,
     .prepare = ddod_prepare,

@@ -1,12 +1,103 @@
-/* The ddod method's GPU passes (see ddod.h): not yet wired. */
+/* The ddod method's GPU passes (see ddod.h): the shared GPU scene plus this
+ * method's buffers at LU_SCENE_BINDING_FREE and above; samples and SH are
+ * uploaded once per sample set, the frame's pixel records and tile lists
+ * every frame. */
+#include <stdlib.h>
+
+#include "backends/gpu.h"
 #include "methods/ddod.h"
+#include "methods/gpu_scene.h"
+
+enum { B_SAMPLES, B_SH, B_RADIANCE, B_PIXELS, B_TILE_START, B_TILE_LIST, B_ENV, B_OUT, B_COUNT };
+
+struct lu_ddod_gpu {
+    lu_gpu_context *ctx;
+    lu_gpu_program *pass1, *pass2;
+    lu_gpu_scene *scene;
+    lu_gpu_buffer *buf[B_COUNT];
+    size_t size[B_COUNT];
+    unsigned set_version;
+    bool set_uploaded;
+};
 
 lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error *err) {
     *out = NULL;
-    return lu_fail(err, LU_ERR_UNSUPPORTED, "ddod: the GPU backend is not available yet");
+    lu_ddod_gpu *g = calloc(1, sizeof *g);
+    if (!g) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "ddod.comp", "#define LU_DDOD_PASS 1\n", &g->pass1, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "ddod.comp", "#define LU_DDOD_PASS 2\n", &g->pass2, err);
+    if (r == LU_OK) r = lu_gpu_scene_create(g->ctx, scene, &g->scene, err);
+    if (r != LU_OK) {
+        lu_ddod_gpu_destroy(g);
+        return r;
+    }
+    *out = g;
+    return LU_OK;
 }
+
+void lu_ddod_gpu_destroy(lu_ddod_gpu *g) {
+    if (!g) return;
+    for (int i = 0; i < B_COUNT; i++) lu_gpu_buffer_destroy(g->buf[i]);
+    lu_gpu_scene_destroy(g->scene);
+    lu_gpu_program_destroy(g->pass1);
+    lu_gpu_program_destroy(g->pass2);
+    lu_gpu_context_destroy(g->ctx);
+    free(g);
+}
+
+/* Slot i holds at least `bytes` (grown when needed); data == NULL keeps the contents. */
+static lu_result put(lu_ddod_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
+    if (bytes == 0) bytes = 16, data = NULL;
+    if (!g->buf[i] || g->size[i] < bytes) {
+        lu_gpu_buffer_destroy(g->buf[i]);
+        g->buf[i] = NULL;
+        lu_result r = lu_gpu_buffer_create(g->ctx, bytes, data, &g->buf[i], err);
+        if (r != LU_OK) return r;
+        g->size[i] = bytes;
+    } else if (data) {
+        lu_result r = lu_gpu_buffer_upload(g->buf[i], 0, data, bytes, err);
+        if (r != LU_OK) return r;
+    }
+    return lu_gpu_buffer_bind(g->buf[i], LU_SCENE_BINDING_FREE + i, err);
+}
+
+static void set_uniforms(lu_gpu_program *p, const lu_ddod_frame *f) {
+    lu_gpu_uniform_int(p, "u_bands", f->P.bands);
+    lu_gpu_uniform_int(p, "u_channels", f->P.channels);
+    lu_gpu_uniform_int(p, "u_stride", f->P.stride);
+    lu_gpu_uniform_int(p, "u_normalize", f->P.normalize);
+    lu_gpu_uniform_int(p, "u_tile", f->P.tile);
+    lu_gpu_uniform_int(p, "u_tiles_x", f->P.tiles_x);
+    lu_gpu_uniform_int(p, "u_env", f->P.env);
+    lu_gpu_uniform_int(p, "u_count", f->count);
+}
+
 lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_ddod_frame *f, lu_image *out,
                              lu_error *err) {
-    return lu_fail(err, LU_ERR_UNSUPPORTED, "ddod: the GPU backend is not available yet");
+    size_t pixels = (size_t)f->width * f->height;
+    size_t n = (size_t)f->count;
+    bool same = g->set_uploaded && g->set_version == f->set_version;
+    lu_result r = lu_gpu_scene_update(g->scene, scene, err);
+    if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
+    if (r == LU_OK) r = put(g, B_SAMPLES, same ? NULL : f->samples, n * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_SH, same ? NULL : f->sh, n * (size_t)f->P.stride * sizeof(float), err);
+    g->set_uploaded = r == LU_OK;
+    g->set_version = f->set_version;
+    if (r == LU_OK) r = put(g, B_RADIANCE, NULL, n * 4 * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_PIXELS, f->pixels, pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float), err);
+    if (r == LU_OK)
+        r = put(g, B_TILE_START, f->tile_start, ((size_t)f->P.tiles_x * f->tiles_y + 1) * sizeof(int), err);
+    if (r == LU_OK) r = put(g, B_TILE_LIST, f->tile_list, f->list_count * sizeof(int), err);
+    if (r == LU_OK)
+        r = put(g, B_ENV, f->P.env ? f->env_sh : NULL, f->P.env ? (size_t)f->P.bands * f->P.bands * 3 * sizeof(float) : 0,
+                err);
+    if (r == LU_OK) r = put(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
+    if (r != LU_OK) return r;
+    set_uniforms(g->pass1, f);
+    set_uniforms(g->pass2, f);
+    if (n > 0) r = lu_gpu_dispatch(g->pass1, (unsigned)((n + 63) / 64), 1, 1, err);
+    if (r == LU_OK) r = lu_gpu_dispatch(g->pass2, (unsigned)f->P.tiles_x, (unsigned)f->tiles_y, 1, err);
+    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    return r;
 }
-void lu_ddod_gpu_destroy(lu_ddod_gpu *g) { (void)g; }
