@@ -39,27 +39,6 @@ static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) {
 }
 #include "kernels/lu_ddod.h"
 
-/* Gauss-Legendre nodes/weights on [-1, 1]. */
-static void gauss_legendre(int n, double *x, double *w) {
-    for (int i = 0; i < n; i++) {
-        double z = cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 1.0;
-        for (int it = 0; it < 100; it++) {
-            double p0 = 1.0, p1 = z;
-            for (int k = 2; k <= n; k++) {
-                double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = n * (z * p1 - p0) / (z * z - 1);
-            double dz = p1 / dp;
-            z -= dz;
-            if (fabs(dz) < 1e-15) break;
-        }
-        x[i] = z;
-        w[i] = 2.0 / ((1 - z * z) * dp * dp);
-    }
-}
-
 static double legendre_p(int l, double x) {
     double p0 = 1.0, p1 = x;
     if (l == 0) return 1.0;
@@ -77,7 +56,7 @@ static void zonal_coeffs(double (*f)(double, double), double param, int bands, d
     enum { N = 400 };
     static double x[N], w[N];
     static bool ready = false;
-    if (!ready) gauss_legendre(N, x, w), ready = true;
+    if (!ready) lu_test_gauss_legendre(N, x, w), ready = true;
     for (int l = 0; l < bands; l++) {
         double s = 0.0;
         for (int i = 0; i < N; i++) s += w[i] * f(x[i], param) * legendre_p(l, x[i]);

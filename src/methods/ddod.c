@@ -15,6 +15,7 @@
 #include "methods/ddod.h"
 #include "methods/gpu_scene.h"
 #include "methods/methods.h"
+#include "methods/opaque_accel.h"
 #include "methods/tile_bins.h"
 
 /* ---- kernel context: the hooks of lu_ddod.h on the CPU ---- */
@@ -206,31 +207,14 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
     lu_aabb bounds = lu_scene_bounds(scene);
     float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
     st->eps = 1e-5f * fmaxf(size, 1e-3f);
-    int opaque_count = 0;
-    for (int i = 0; i < scene->object_count; i++) opaque_count += scene->objects[i].material.type == LU_MATERIAL_DIFFUSE;
-    if (opaque_count && r == LU_OK) {
-        st->opaque_object = calloc((size_t)opaque_count, sizeof *st->opaque_object);
-        if (!st->opaque_object) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
-        if (r == LU_OK) r = lu_accel_create(&st->opaque, err);
-        for (int i = 0; i < scene->object_count && r == LU_OK; i++) {
-            if (scene->objects[i].material.type != LU_MATERIAL_DIFFUSE) continue;
-            uint32_t id;
-            r = lu_accel_add_mesh(st->opaque, &scene->objects[i].mesh, &id, err);
-            if (r == LU_OK) st->opaque_object[id] = i;
-        }
-        if (r == LU_OK) r = lu_accel_commit(st->opaque, err);
-    }
+    if (r == LU_OK) r = lu_opaque_accel_build(scene, &st->opaque, &st->opaque_object, err);
     st->medium_count = scene->medium_count;
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
     st->boundary = calloc(nm, sizeof *st->boundary);
     st->km = calloc(nm, sizeof *st->km);
     if ((!st->boundary || !st->km) && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
-    for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
-        uint32_t id;
-        r = lu_accel_create(&st->boundary[m], err);
-        if (r == LU_OK) r = lu_accel_add_mesh(st->boundary[m], &scene->media[m].boundary, &id, err);
-        if (r == LU_OK) r = lu_accel_commit(st->boundary[m], err);
-    }
+    for (int m = 0; m < scene->medium_count && r == LU_OK; m++)
+        r = lu_mesh_accel_build(&scene->media[m].boundary, &st->boundary[m], err);
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_ddod_gpu_create(scene, &st->gpu, err);
     if (r != LU_OK) {
         ddod_destroy(st);
@@ -243,9 +227,9 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
         const lu_ddod_timing *t = &st->set.timing;
         fprintf(stderr,
                 "ddod: %d samples, %d SH coefficients x %d channel(s); precompute %s%.2f s (optical depth %.2f, "
-                "divergence %.2f, sampling %.2f, SH %.2f)\n",
+                "divergence %.2f, sampling %.2f, SH %.2f; processor time %.2f s)\n",
                 st->set.count, st->set.bands * st->set.bands, st->set.channels, t->from_cache ? "loaded, took " : "",
-                t->total_s, t->optical_depth_s, t->divergence_s, t->sampling_s, t->sh_s);
+                t->total_s, t->optical_depth_s, t->divergence_s, t->sampling_s, t->sh_s, t->cpu_s);
     }
     *out = st;
     return LU_OK;

@@ -46,6 +46,7 @@ typedef struct lu_ddod_params {
 
 typedef struct lu_ddod_timing {
     double optical_depth_s, divergence_s, sampling_s, sh_s, total_s;
+    double cpu_s;     /* processor time of the process over the precomputation (all threads) */
     bool from_cache;
 } lu_ddod_timing;
 

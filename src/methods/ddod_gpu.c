@@ -15,7 +15,6 @@ struct lu_ddod_gpu {
     lu_gpu_program *pass1, *pass2;
     lu_gpu_scene *scene;
     lu_gpu_buffer *buf[B_COUNT];
-    size_t size[B_COUNT];
     unsigned set_version;
     bool set_uploaded;
 };
@@ -46,20 +45,11 @@ void lu_ddod_gpu_destroy(lu_ddod_gpu *g) {
     free(g);
 }
 
-/* Slot i holds at least `bytes` (grown when needed); data == NULL keeps the contents. */
-static lu_result put(lu_ddod_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
-    if (bytes == 0) bytes = 16, data = NULL;
-    if (!g->buf[i] || g->size[i] < bytes) {
-        lu_gpu_buffer_destroy(g->buf[i]);
-        g->buf[i] = NULL;
-        lu_result r = lu_gpu_buffer_create(g->ctx, bytes, data, &g->buf[i], err);
-        if (r != LU_OK) return r;
-        g->size[i] = bytes;
-    } else if (data) {
-        lu_result r = lu_gpu_buffer_upload(g->buf[i], 0, data, bytes, err);
-        if (r != LU_OK) return r;
-    }
-    return lu_gpu_buffer_bind(g->buf[i], LU_SCENE_BINDING_FREE + i, err);
+/* Buffer slot i with `bytes` of data (a fresh buffer: the frame's arrays change size with the view). */
+static lu_result fresh(lu_ddod_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
+    lu_gpu_buffer_destroy(g->buf[i]);
+    g->buf[i] = NULL;
+    return lu_gpu_buffer_create(g->ctx, bytes ? bytes : 16, bytes ? data : NULL, &g->buf[i], err);
 }
 
 static void set_uniforms(lu_gpu_program *p, const lu_ddod_frame *f) {
@@ -77,22 +67,25 @@ lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_ddo
                              lu_error *err) {
     size_t pixels = (size_t)f->width * f->height;
     size_t n = (size_t)f->count;
-    bool same = g->set_uploaded && g->set_version == f->set_version;
     lu_result r = lu_gpu_scene_update(g->scene, scene, err);
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
-    if (r == LU_OK) r = put(g, B_SAMPLES, same ? NULL : f->samples, n * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_SH, same ? NULL : f->sh, n * (size_t)f->P.stride * sizeof(float), err);
-    g->set_uploaded = r == LU_OK;
-    g->set_version = f->set_version;
-    if (r == LU_OK) r = put(g, B_RADIANCE, NULL, n * 4 * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_PIXELS, f->pixels, pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float), err);
+    /* The sample set only changes with prepare: upload it once. */
+    if (r == LU_OK && !(g->set_uploaded && g->set_version == f->set_version)) {
+        r = fresh(g, B_SAMPLES, f->samples, n * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float), err);
+        if (r == LU_OK) r = fresh(g, B_SH, f->sh, n * (size_t)f->P.stride * sizeof(float), err);
+        if (r == LU_OK) r = fresh(g, B_RADIANCE, NULL, n * 4 * sizeof(float), err);
+        g->set_uploaded = r == LU_OK;
+        g->set_version = f->set_version;
+    }
+    if (r == LU_OK) r = fresh(g, B_PIXELS, f->pixels, pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float), err);
     if (r == LU_OK)
-        r = put(g, B_TILE_START, f->tile_start, ((size_t)f->P.tiles_x * f->tiles_y + 1) * sizeof(int), err);
-    if (r == LU_OK) r = put(g, B_TILE_LIST, f->tile_list, f->list_count * sizeof(int), err);
+        r = fresh(g, B_TILE_START, f->tile_start, ((size_t)f->P.tiles_x * f->tiles_y + 1) * sizeof(int), err);
+    if (r == LU_OK) r = fresh(g, B_TILE_LIST, f->tile_list, f->list_count * sizeof(int), err);
     if (r == LU_OK)
-        r = put(g, B_ENV, f->P.env ? f->env_sh : NULL, f->P.env ? (size_t)f->P.bands * f->P.bands * 3 * sizeof(float) : 0,
-                err);
-    if (r == LU_OK) r = put(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
+        r = fresh(g, B_ENV, f->env_sh, f->P.env ? (size_t)f->P.bands * f->P.bands * 3 * sizeof(float) : 0, err);
+    if (r == LU_OK && !(g->buf[B_OUT] && lu_gpu_buffer_size(g->buf[B_OUT]) == pixels * 3 * sizeof(float)))
+        r = fresh(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
+    for (int i = 0; i < B_COUNT && r == LU_OK; i++) r = lu_gpu_buffer_bind(g->buf[i], LU_SCENE_BINDING_FREE + i, err);
     if (r != LU_OK) return r;
     set_uniforms(g->pass1, f);
     set_uniforms(g->pass2, f);

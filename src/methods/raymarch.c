@@ -12,6 +12,7 @@
 #include "methods/gpu_scene.h"
 #include "methods/lightview.h"
 #include "methods/methods.h"
+#include "methods/opaque_accel.h"
 #include "methods/raymarch.h"
 
 /* ---- kernel context: the hooks of lu_raymarch.h on the CPU ---- */
@@ -127,32 +128,14 @@ static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_back
     float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
     st->eps = 1e-5f * fmaxf(size, 1e-3f);
 
-    int opaque_count = 0;
-    for (int i = 0; i < scene->object_count; i++) opaque_count += scene->objects[i].material.type == LU_MATERIAL_DIFFUSE;
-    if (opaque_count && r == LU_OK) {
-        st->opaque_object = calloc((size_t)opaque_count, sizeof *st->opaque_object);
-        if (!st->opaque_object) r = lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
-        if (r == LU_OK) r = lu_accel_create(&st->opaque, err);
-        for (int i = 0; i < scene->object_count && r == LU_OK; i++) {
-            if (scene->objects[i].material.type != LU_MATERIAL_DIFFUSE) continue;
-            uint32_t id;
-            r = lu_accel_add_mesh(st->opaque, &scene->objects[i].mesh, &id, err);
-            if (r == LU_OK) st->opaque_object[id] = i;
-        }
-        if (r == LU_OK) r = lu_accel_commit(st->opaque, err);
-    }
+    if (r == LU_OK) r = lu_opaque_accel_build(scene, &st->opaque, &st->opaque_object, err);
     st->medium_count = scene->medium_count;
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
     st->boundary = calloc(nm, sizeof *st->boundary);
     st->km = calloc(nm, sizeof *st->km);
     if ((!st->boundary || !st->km) && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
-    for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
-        if (!scene->media[m].has_boundary) continue;
-        uint32_t id;
-        r = lu_accel_create(&st->boundary[m], err);
-        if (r == LU_OK) r = lu_accel_add_mesh(st->boundary[m], &scene->media[m].boundary, &id, err);
-        if (r == LU_OK) r = lu_accel_commit(st->boundary[m], err);
-    }
+    for (int m = 0; m < scene->medium_count && r == LU_OK; m++)
+        if (scene->media[m].has_boundary) r = lu_mesh_accel_build(&scene->media[m].boundary, &st->boundary[m], err);
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_raymarch_gpu_create(scene, &st->gpu, err);
     if (r != LU_OK) {
         rm_destroy(st);
