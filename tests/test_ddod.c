@@ -120,6 +120,29 @@ static void test_sh_projection(void) {
     free(f);
 }
 
+/* The 8-band extension of lu_sh.h (64 coefficients) is orthonormal:
+ * Gauss-Legendre in cos(theta) (16 nodes, exact to degree 31) times a
+ * uniform phi rule (32 nodes, exact to trigonometric degree 31). */
+static void test_sh_orthonormal_8(void) {
+    enum { NT = 16, NP = 32, NC = 64 };
+    double gx[NT], gw[NT];
+    lu_test_gauss_legendre(NT, gx, gw);
+    static double gram[NC][NC];
+    float y[LU_SH_MAX_COEFFS];
+    for (int i = 0; i < NT; i++)
+        for (int k = 0; k < NP; k++) {
+            double st = sqrt(1.0 - gx[i] * gx[i]), ph = 2.0 * M_PI * (k + 0.5) / NP;
+            lu_k_sh_eval(lu_v3((float)(st * cos(ph)), (float)(st * sin(ph)), (float)gx[i]), 8, y);
+            for (int a = 0; a < NC; a++)
+                for (int b = a; b < NC; b++) gram[a][b] += gw[i] * (2.0 * M_PI / NP) * y[a] * y[b];
+        }
+    double worst = 0.0;
+    for (int a = 0; a < NC; a++)
+        for (int b = a; b < NC; b++) worst = fmax(worst, fabs(gram[a][b] - (a == b ? 1.0 : 0.0)));
+    fprintf(stderr, "  SH (8 bands) Gram matrix max deviation from identity: %.2g\n", worst);
+    CHECK(worst < 2e-5);
+}
+
 static void test_gauss_line(void) {
     lu_vec3 b = lu_v3(0.3f, -0.2f, 0.5f);
     float s = 0.17f;
@@ -391,6 +414,7 @@ static void test_images(void) {
 
 int main(void) {
     RUN_TEST(test_sh_projection);
+    RUN_TEST(test_sh_orthonormal_8);
     RUN_TEST(test_gauss_line);
     RUN_TEST(test_poisson);
     RUN_TEST(test_sphere_attenuation);

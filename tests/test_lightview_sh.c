@@ -30,7 +30,7 @@ static void test_sh_orthonormal(void) {
     double gx[NT], gw[NT];
     lu_test_gauss_legendre(NT, gx, gw);
     static double gram[36][36];
-    float y[36];
+    float y[LU_SH_MAX_COEFFS];
     for (int i = 0; i < NT; i++) {
         for (int k = 0; k < NP; k++) {
             lu_k_sh_eval(dir_of(gx[i], 2.0 * M_PI * (k + 0.5) / NP), 6, y);
@@ -47,7 +47,7 @@ static void test_sh_orthonormal(void) {
 }
 
 static void test_sh_closed_forms(void) {
-    float y[36];
+    float y[LU_SH_MAX_COEFFS];
     lu_vec3 d = lu_v3_norm(lu_v3(0.3f, -0.5f, 0.81f));
     lu_k_sh_eval(d, 3, y);
     CHECK_NEAR(y[0], 0.282095, 1e-6);
@@ -71,7 +71,7 @@ static void test_sh_addition_theorem(void) {
             r[i] = (s >> 8) / 16777216.0;
         }
         lu_vec3 a = dir_of(2 * r[0] - 1, 2 * M_PI * r[1]), b = dir_of(2 * r[2] - 1, 2 * M_PI * r[3]);
-        float ya[36], yb[36];
+        float ya[LU_SH_MAX_COEFFS], yb[LU_SH_MAX_COEFFS];
         lu_k_sh_eval(a, 6, ya);
         lu_k_sh_eval(b, 6, yb);
         double t = lu_v3_dot(a, b);
