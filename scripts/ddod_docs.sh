@@ -62,14 +62,14 @@ set terminal pngcairo size 900,380 font ",10"
 set output "$OUT/scaling.png"
 set datafile separator ","
 set multiplot layout 1,2
-set title "frame time vs lights (50k samples)"
-set xlabel "lights"; set ylabel "ms / frame"; set logscale x 2; set key top left
-plot "< grep '^lights,.*,cpu' $OUT/scaling.csv" u 2:4 w lp t "CPU", \
-     "< grep '^lights,.*,gpu' $OUT/scaling.csv" u 2:4 w lp t "GPU (llvmpipe unless a GPU is present)"
-set title "frame time vs samples (2 lights)"
+set title "processor time per frame vs lights (50k samples)"
+set xlabel "lights"; set ylabel "processor ms / frame"; set logscale x 2; set key top left; set yrange [0:*]
+plot "< grep '^lights,.*,cpu' $OUT/scaling.csv" u 2:5 w lp t "CPU backend", \
+     "< grep '^lights,.*,gpu' $OUT/scaling.csv" u 2:5 w lp t "GPU backend (llvmpipe)"
+set title "processor time per frame vs samples (2 lights)"
 set xlabel "samples"; unset logscale x
-plot "< grep '^samples,.*,cpu' $OUT/scaling.csv" u 2:4 w lp t "CPU", \
-     "< grep '^samples,.*,gpu' $OUT/scaling.csv" u 2:4 w lp t "GPU"
+plot "< grep '^samples,.*,cpu' $OUT/scaling.csv" u 2:5 w lp t "CPU backend", \
+     "< grep '^samples,.*,gpu' $OUT/scaling.csv" u 2:5 w lp t "GPU backend (llvmpipe)"
 unset multiplot
 GP
 fi
