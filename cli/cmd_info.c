@@ -15,7 +15,10 @@ static void usage(void) {
            "--gpu makes the GPU backend's OpenGL 4.5 context (headless EGL: hardware devices\n"
            "first, then Mesa's software device, then the surfaceless platform; --software or\n"
            "--hardware insists on one kind) and prints vendor, renderer, version, the EGL\n"
-           "devices found and the limits methods depend on. Exits 1 when no context can be made.\n");
+           "devices found and the limits methods depend on. Exits 1 when no context can be made.\n"
+           "LUCENT_GPU=auto|hardware|software in the environment does what --hardware and\n"
+           "--software do, for every GPU context lucent makes; LUCENT_GPU_DEVICE=N tries only\n"
+           "EGL device N of the list printed here.\n");
 }
 
 static void print_box(const char *indent, lu_aabb b) {

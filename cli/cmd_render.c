@@ -10,7 +10,10 @@ static void usage(void) {
            "\n"
            "options:\n"
            "  --method M          rendering method (default: reference; see `lucent methods`)\n"
-           "  --backend cpu|gpu   where it runs (default: cpu)\n"
+           "  --backend cpu|gpu|auto  where it runs (default: cpu); auto: the GPU when the\n"
+           "                      method has a GPU path and a context can be made, else the\n"
+           "                      CPU with a note (gpu: an error when there is no GPU).\n"
+           "                      LUCENT_GPU=auto|hardware|software picks the GPU device kind\n"
            "  --set M.P=V         set parameter P of method M (repeatable), e.g. --set reference.spp=4\n"
            "  --size WxH          override the camera's image size\n"
            "  --exposure E        PNG only: scale by 2^E before the sRGB curve (default 0)\n"
@@ -42,6 +45,7 @@ static void save_partial(void *user, const lu_image *partial, int done, int tota
 int lu_cmd_render(int argc, char **argv) {
     const char *scene_path = NULL, *out_path = NULL, *method = "reference";
     lu_backend backend = LU_BACKEND_CPU;
+    bool backend_auto = false;
     lu_kvlist settings = {0};
     lu_image_save_desc save = {0};
     int width = 0, height = 0, progressive_every = 0;
@@ -57,7 +61,12 @@ int lu_cmd_render(int argc, char **argv) {
         } else if (strcmp(a, "--method") == 0 && has_next) {
             method = argv[++i];
         } else if (strcmp(a, "--backend") == 0 && has_next) {
-            if (!lu_cli_parse_backend(argv[++i], &backend)) rc = lu_cli_usage("render", "--backend takes cpu or gpu");
+            if (strcmp(argv[i + 1], "auto") == 0) {
+                backend_auto = true;
+                i++;
+            } else if (!lu_cli_parse_backend(argv[++i], &backend)) {
+                rc = lu_cli_usage("render", "--backend takes cpu, gpu or auto");
+            }
         } else if (strcmp(a, "--set") == 0 && has_next) {
             if (lu_kv_parse_assignment(&settings, argv[++i], &err) != LU_OK) rc = lu_cli_error("render", &err);
         } else if (strcmp(a, "--size") == 0 && has_next) {
@@ -104,7 +113,17 @@ int lu_cmd_render(int argc, char **argv) {
     lu_renderer *r = NULL;
     lu_image img = {0};
     progressive_sink sink = {out_path, &save};
-    bool created = lu_renderer_create(method, &scene, &settings, backend, &r, &err) == LU_OK;
+    if (backend_auto) {
+        const lu_method *m = lu_method_find(method);
+        backend = m && (m->backends & LU_BACKEND_GPU) ? LU_BACKEND_GPU : LU_BACKEND_CPU;
+    }
+    lu_result cr = lu_renderer_create(method, &scene, &settings, backend, &r, &err);
+    if (cr == LU_ERR_BACKEND && backend_auto) {
+        fprintf(stderr, "lucent render: note: no GPU (%s); rendering on the CPU\n", err.message);
+        backend = LU_BACKEND_CPU;
+        cr = lu_renderer_create(method, &scene, &settings, backend, &r, &err);
+    }
+    bool created = cr == LU_OK;
     if (created && progressive_every > 0 && !lu_renderer_set_progressive(r, save_partial, &sink, progressive_every))
         fprintf(stderr, "lucent render: %s renders in one pass; --progressive-every ignored\n", method);
     if (!created || lu_renderer_render(r, &scene, &img, &err) != LU_OK ||

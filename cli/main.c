@@ -13,6 +13,7 @@ static const char k_usage[] =
     "  render SCENE.json --method M -o OUT.{png,exr,pfm}   render a scene\n"
     "  compare A B [-o diff.png]                            error metrics of A against reference B\n"
     "  bench SCENE.json --methods a,b,...                   time methods, error against the reference\n"
+    "  view SCENE.json [--method M]                         interactive viewer (window)\n"
     "  info FILE                                            summarise a scene, mesh, grid or image\n"
     "  methods                                              list methods and their parameters\n"
     "  profile --preset NAME                                diffusion profile of a translucent material\n"
@@ -103,7 +104,8 @@ int main(int argc, char **argv) {
         const char *name;
         int (*fn)(int, char **);
     } cmds[] = {{"render", lu_cmd_render}, {"compare", lu_cmd_compare}, {"bench", lu_cmd_bench},
-                {"info", lu_cmd_info},     {"methods", lu_cmd_methods}, {"profile", lu_cmd_profile}};
+                {"info", lu_cmd_info},     {"methods", lu_cmd_methods}, {"profile", lu_cmd_profile},
+                {"view", lu_cmd_view}};
     for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++)
         if (strcmp(argv[1], cmds[i].name) == 0) return cmds[i].fn(argc - 1, argv + 1);
     fprintf(stderr, "lucent: unknown command \"%s\"\n\n%s", argv[1], k_usage);

@@ -666,6 +666,49 @@ static void test_no_45_context(void) {
     fprintf(stderr, "  capped at 4.1: %s", out);
 }
 
+/* Loop iterations per invocation: Mesa's llvmpipe ends every loop of an
+ * invocation once 65535 iterations have run in it, all loops together, and
+ * silently (the count then comes out short). GPU drivers that march long
+ * rays (raymarch: LU_RM_LOOP_BUDGET) split their work below that. The test
+ * proves a budget-sized nested loop is exact and records what the driver
+ * does beyond it (a hardware GPU runs the full count). */
+static void test_loop_budget(void) {
+    if (!g_ctx) return;
+    static const lu_gpu_source ov[] = {
+        {"loops.comp", "layout(local_size_x = 1) in;\n"
+                       "layout(std430, binding = 0) buffer B { int v[]; };\n"
+                       "uniform int u_outer; uniform int u_inner;\n"
+                       "void main() { int n = 0;\n"
+                       "  for (int i = 0; i < u_outer; i++) for (int j = 0; j < u_inner; j++) n++;\n"
+                       "  v[0] = n; }\n"},
+    };
+    lu_error err = {0};
+    lu_gpu_program *p = NULL;
+    lu_gpu_buffer *b = NULL;
+    CHECK_OK(lu_gpu_program_create_ex(g_ctx, "loops.comp", NULL, ov, 1, &p, &err), &err);
+    CHECK_OK(lu_gpu_buffer_create(g_ctx, 16, NULL, &b, &err), &err);
+    if (!p || !b) goto done;
+    CHECK_OK(lu_gpu_buffer_bind(b, 0, &err), &err);
+    static const int cases[2][2] = {{150, 390}, {1000, 1000}};   /* 58500 + 150 iterations; 1e6 */
+    int got[2] = {0, 0};
+    for (int k = 0; k < 2; k++) {
+        lu_gpu_uniform_int(p, "u_outer", cases[k][0]);
+        lu_gpu_uniform_int(p, "u_inner", cases[k][1]);
+        CHECK_OK(lu_gpu_dispatch(p, 1, 1, 1, &err), &err);
+        CHECK_OK(lu_gpu_buffer_download(b, 0, &got[k], sizeof(int), &err), &err);
+    }
+    CHECK_MSG(got[0] == cases[0][0] * cases[0][1], "nested loop within the budget counted %d", got[0]);
+    lu_gpu_info in;
+    lu_gpu_info_get(g_ctx, &in);
+    fprintf(stderr, "  %s: a 1000 x 1000 nested loop counted %d%s\n", in.renderer, got[1],
+            got[1] == 1000000 ? " (no loop cap)" : " (loops capped: work must be split)");
+    /* What LU_RM_LOOP_BUDGET assumes of a software rasteriser. */
+    if (in.is_software && strstr(in.renderer, "llvmpipe")) CHECK(got[1] < 65536);
+done:
+    lu_gpu_buffer_destroy(b);
+    lu_gpu_program_destroy(p);
+}
+
 int main(int argc, char **argv) {
     if (argc > 1 && strcmp(argv[1], "--child-gl41") == 0) return child_gl41();
     RUN_TEST(test_embedded_sources);
@@ -680,6 +723,7 @@ int main(int argc, char **argv) {
     RUN_TEST(test_image);
     RUN_TEST(test_program_errors);
     RUN_TEST(test_argument_errors);
+    RUN_TEST(test_loop_budget);
     RUN_TEST(test_no_45_context);
     lu_gpu_context_destroy(g_ctx);
     TEST_EXIT();

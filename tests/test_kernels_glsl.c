@@ -38,7 +38,16 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "float lu_k_ddod_pixel_f(LU_CTX_PARAM, int pixel, int k) { return 0.0; }\n"
                                 "int lu_k_ddod_tile_start(LU_CTX_PARAM, int tile) { return 0; }\n"
                                 "int lu_k_ddod_tile_item(LU_CTX_PARAM, int k) { return 0; }\n"
-                                "vec3 lu_k_ddod_env_coeff(LU_CTX_PARAM, int k) { return vec3(0.0); }\n");
+                                "vec3 lu_k_ddod_env_coeff(LU_CTX_PARAM, int k) { return vec3(0.0); }\n"
+                                "float lu_k_afm_lspan(LU_CTX_PARAM, int texel, int m, int k) { return float(k); }\n"
+                                "void lu_k_afm_store(LU_CTX_PARAM, int texel, int i, float v) { o.v[i] = v; }\n"
+                                "float lu_k_afm_fetch(LU_CTX_PARAM, int texel, int i) { return float(i); }\n"
+                                "int lu_k_afm_view_first(LU_CTX_PARAM, int l) { return 0; }\n"
+                                "int lu_k_afm_view_count(LU_CTX_PARAM, int l) { return 0; }\n"
+                                "lu_k_lightview lu_k_afm_view(LU_CTX_PARAM, int v) { lu_k_lightview w; w.ortho = 1; return w; }\n"
+                                "float lu_k_afm_cam_normal(LU_CTX_PARAM, int pixel, int m, int k) { return 0.0; }\n"
+                                "float lu_k_afm_surface(LU_CTX_PARAM, int m, int k) { return 1.0; }\n"
+                                "int lu_k_afm_param(LU_CTX_PARAM, int i) { return 4; }\n");
     int count = 0;
     DIR *dir = opendir(LU_SOURCE_DIR "/src/kernels");
     CHECK(dir != NULL);

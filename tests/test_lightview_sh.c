@@ -177,6 +177,37 @@ static void test_shadow_map(void) {
     lu_mesh_destroy(&quad);
 }
 
+static void test_shadow_cube_seam(void) {
+    /* A point light enclosed by a blocker at distance 1 (every cube face's
+     * map holds depth 1): every point farther away is in shadow, including
+     * points next to the seam of two faces whose normal offset crosses into
+     * the neighbouring face (they once came out lit, drawing lines). */
+    lu_light lamp = {0};
+    lamp.type = LU_LIGHT_POINT;
+    lu_lightviews vs;
+    lu_lightviews_for_light(&lamp, (lu_aabb){{-8, -8, -8}, {8, 8, 8}}, &vs);
+    CHECK(vs.count == 6);
+    g_res = 32;
+    float *depth = malloc(sizeof(float) * 32 * 32);
+    for (int k = 0; k < 32 * 32; k++) depth[k] = 1.0f;
+    g_depth = depth;
+    int checked = 0;
+    for (int k = 0; k < 200; k++) {
+        /* Just on the +x side of the x = y seam, normal pointing into +y. */
+        float t = -0.9f + 1.8f * (float)k / 199.0f;
+        lu_vec3 x = lu_v3_scale(lu_v3_norm(lu_v3(1.0f, 0.999f, t)), 5.0f);
+        int face = lu_lightviews_select(&vs, x);
+        if (face < 0) continue;
+        checked++;
+        CHECK_NEAR(lu_k_shadow_lookup(NULL, vs.view[face], 0, 32, x, lu_v3(0, 1, 0)), 0.0, 1e-6);
+        /* and a point in front of the blocker stays lit */
+        lu_vec3 near = lu_v3_scale(lu_v3_norm(x), 0.5f);
+        CHECK_NEAR(lu_k_shadow_lookup(NULL, vs.view[lu_lightviews_select(&vs, near)], 0, 32, near, lu_v3(0, 1, 0)), 1.0, 1e-6);
+    }
+    CHECK(checked > 150);
+    free(depth);
+}
+
 int main(void) {
     RUN_TEST(test_sh_orthonormal);
     RUN_TEST(test_sh_closed_forms);
@@ -184,5 +215,6 @@ int main(void) {
     RUN_TEST(test_sh_lambert);
     RUN_TEST(test_lightview_roundtrip);
     RUN_TEST(test_shadow_map);
+    RUN_TEST(test_shadow_cube_seam);
     TEST_EXIT();
 }

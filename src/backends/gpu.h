@@ -154,6 +154,12 @@ lu_result lu_gpu_buffer_upload(lu_gpu_buffer *buf, size_t offset, const void *da
 lu_result lu_gpu_buffer_download(lu_gpu_buffer *buf, size_t offset, void *data, size_t bytes, lu_error *err);
 /* layout(std430, binding = b) buffer ... */
 lu_result lu_gpu_buffer_bind(lu_gpu_buffer *buf, int binding, lu_error *err);
+/* A method's per-frame buffer in one call: (re)creates *slot when it is
+ * missing or smaller than `bytes` (bytes 0 counts as 16), uploads `data`
+ * unless it is NULL (then the contents are kept, or zero when just made),
+ * and binds it at `binding`. */
+lu_result lu_gpu_buffer_put(lu_gpu_context *ctx, lu_gpu_buffer **slot, const void *data, size_t bytes, int binding,
+                            lu_error *err);
 
 /* ---- textures and images ----------------------------------------------------
  * Density grids: GL_R32F 3D textures with GL_LINEAR filtering and

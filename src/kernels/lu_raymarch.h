@@ -107,6 +107,28 @@ LU_FN vec3 lu_k_rm_transmittance(LU_CTX_PARAM, vec3 x, vec3 w, float dist) {
     return lu_v3_exp(lu_v3_neg(tau));
 }
 
+/* (1 - exp(-x)) / x for x >= 0, accurate in float for every x. */
+LU_FN float lu_k_rm_step_weight(float x) {
+    if (x < 0.03f) return 1.0f - x * (0.5f - x * (1.0f / 6.0f - x * (1.0f / 24.0f)));
+    return (1.0f - lu_exp(-x)) / x;
+}
+
+/* Transmittance from x to light l (arrival ls): exact optical depth here;
+ * a method that reuses this march with another estimate (afm: attenuation
+ * function maps) defines LU_K_RM_LIGHT_TR(l, x, ls) before including this
+ * file. */
+#ifndef LU_K_RM_LIGHT_TR
+#define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist)
+#endif
+
+/* Opaque visibility of light l at the camera ray's surface hit: the shadow
+ * map here; afm defines LU_K_RM_SURFACE_VIS(l, pixel, x, n) first to read
+ * exact per-pixel visibility the CPU traced (a shadow map cannot be exact at
+ * a lit/shadowed edge seen in a pixel). */
+#ifndef LU_K_RM_SURFACE_VIS
+#define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_rm_visibility(LU_CTX, l, x, n, P.map_res)
+#endif
+
 /* Shadow-map visibility of light l at x (n: surface normal, or zero in a medium). */
 LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     int count = lu_k_rm_view_count(LU_CTX, l);
@@ -126,9 +148,18 @@ LU_FN bool lu_k_rm_medium_range(LU_CTX_PARAM, lu_k_medium md, int m, int pixel, 
     return lu_k_box_clip(md.bounds_lo, md.bounds_hi, o, d, lo, hi, t0, t1);
 }
 
-/* Radiance along the camera ray o + t d of `pixel`; u in [0, 1) is where
- * in each step the sample sits (0.5: midpoint). */
-LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, float u) {
+/* The march is split into segments of steps so a backend can run a long
+ * march as several short passes: Mesa's llvmpipe silently stops every loop
+ * of a shader invocation once 65535 loop iterations have run in it (all
+ * loops together; tests/test_gpu.c proves it), and hardware drivers kill
+ * long dispatches. A segment carries the in-scattered radiance L and the
+ * camera ray's optical depth tau so far.
+ *
+ * lu_k_rm_segment marches steps [i0, i1) (clamped to the ray's step count)
+ * of the camera ray o + t d of `pixel`; u in [0, 1) is where in each step the
+ * sample sits (0.5: midpoint). Returns the ray's total step count. */
+LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, float u, int i0, int i1,
+                          LU_INOUT(vec3) L_io, LU_INOUT(vec3) tau_io) {
     lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
     float t_end = hit.t >= 0.0f ? hit.t : LU_K_FAR;
     int nm = lu_min(lu_k_medium_count(LU_CTX), LU_K_RM_MAX_MEDIA);
@@ -149,51 +180,66 @@ LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, v
         ra[m] = a;
         rb[m] = b;
     }
-    vec3 L = lu_v3s(0.0f);
-    vec3 T = lu_v3s(1.0f);
-    if (t1 > t0) {
-        int steps = lu_int(lu_min(lu_ceil((t1 - t0) / P.step), lu_float(LU_K_RM_MAX_STEPS)));
-        float h = (t1 - t0) / lu_float(steps);
-        for (int i = 0; i < steps; i++) {
-            float t = t0 + (lu_float(i) + u) * h;
-            vec3 x = lu_v3_madd(o, d, t);
-            vec3 sig_t = lu_v3s(0.0f);
-            float dens[LU_K_RM_MAX_MEDIA];
-            bool scatters = false;
-            for (int m = 0; m < nm; m++) {
-                dens[m] = 0.0f;
-                if (t < ra[m] || t > rb[m]) continue;
-                lu_k_medium md = lu_k_medium_get(LU_CTX, m);
-                float dm = md.constant != 0 ? md.density_scale : lu_k_density(LU_CTX, m, lu_k_medium_point(md, x));
-                dens[m] = dm;
-                sig_t = lu_v3_madd(sig_t, lu_k_medium_sigma_t(md), dm);
-                scatters = scatters || (dm > 0.0f && lu_v3_maxc(md.sigma_s) > 0.0f);
-            }
-            if (lu_v3_maxc(sig_t) <= 0.0f) continue;
-            vec3 S = lu_v3s(0.0f);
-            if (scatters) {
-                for (int l = 0; l < nl; l++) {
-                    lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
-                    if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-                    float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), P.map_res);
-                    if (vis <= 0.0f) continue;
-                    vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist)), vis);
-                    float cos_t = lu_v3_dot(d, ls.wl);
-                    for (int m = 0; m < nm; m++) {
-                        if (dens[m] <= 0.0f) continue;
-                        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
-                        S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(md.sigma_s, E), dens[m] * lu_k_phase_hg(cos_t, md.g)));
-                    }
+    if (!(t1 > t0)) return 0;
+    int steps = lu_int(lu_min(lu_ceil((t1 - t0) / P.step), lu_float(LU_K_RM_MAX_STEPS)));
+    float h = (t1 - t0) / lu_float(steps);
+    vec3 L = LU_DEREF(L_io);
+    vec3 tau = LU_DEREF(tau_io);
+    vec3 T = lu_v3_exp(lu_v3_neg(tau));
+    int iend = lu_min(i1, steps);
+    for (int i = i0; i < iend; i++) {
+        float t = t0 + (lu_float(i) + u) * h;
+        vec3 x = lu_v3_madd(o, d, t);
+        vec3 sig_t = lu_v3s(0.0f);
+        float dens[LU_K_RM_MAX_MEDIA];
+        bool scatters = false;
+        for (int m = 0; m < nm; m++) {
+            dens[m] = 0.0f;
+            if (t < ra[m] || t > rb[m]) continue;
+            lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+            float dm = md.constant != 0 ? md.density_scale : lu_k_density(LU_CTX, m, lu_k_medium_point(md, x));
+            dens[m] = dm;
+            sig_t = lu_v3_madd(sig_t, lu_k_medium_sigma_t(md), dm);
+            scatters = scatters || (dm > 0.0f && lu_v3_maxc(md.sigma_s) > 0.0f);
+        }
+        if (lu_v3_maxc(sig_t) <= 0.0f) continue;
+        vec3 S = lu_v3s(0.0f);
+        if (scatters) {
+            for (int l = 0; l < nl; l++) {
+                lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
+                if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+                float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), P.map_res);
+                if (vis <= 0.0f) continue;
+                vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, LU_K_RM_LIGHT_TR(l, x, ls)), vis);
+                float cos_t = lu_v3_dot(d, ls.wl);
+                for (int m = 0; m < nm; m++) {
+                    if (dens[m] <= 0.0f) continue;
+                    lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+                    S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(md.sigma_s, E), dens[m] * lu_k_phase_hg(cos_t, md.g)));
                 }
             }
-            vec3 tr = lu_v3_exp(lu_v3_scale(sig_t, -h));
-            /* integral of exp(-sigma s) over [0, h]: (1 - tr) / sigma, -> h as sigma -> 0 */
-            vec3 w = lu_v3(sig_t.x > 1e-6f ? (1.0f - tr.x) / sig_t.x : h, sig_t.y > 1e-6f ? (1.0f - tr.y) / sig_t.y : h,
-                           sig_t.z > 1e-6f ? (1.0f - tr.z) / sig_t.z : h);
-            L = lu_v3_add(L, lu_v3_mul(lu_v3_mul(T, S), w));
-            T = lu_v3_mul(T, tr);
         }
+        /* The step's in-scattering weight, the integral of exp(-sigma s)
+         * over [0, h] = h (1 - exp(-x)) / x with x = sigma h (series for
+         * small x: 1 - exp(-x) cancels in float at fine steps). The camera
+         * ray's transmittance is exp of the summed optical depth, not a
+         * product of per-step factors, for the same reason. */
+        vec3 xs = lu_v3_scale(sig_t, h);
+        vec3 w = lu_v3(lu_k_rm_step_weight(xs.x), lu_k_rm_step_weight(xs.y), lu_k_rm_step_weight(xs.z));
+        L = lu_v3_add(L, lu_v3_mul(lu_v3_mul(T, S), lu_v3_scale(w, h)));
+        tau = lu_v3_add(tau, xs);
+        T = lu_v3_exp(lu_v3_neg(tau));
     }
+    LU_DEREF(L_io) = L;
+    LU_DEREF(tau_io) = tau;
+    return steps;
+}
+
+/* The end of the camera ray of `pixel` (lit opaque surface or background),
+ * seen through the optical depth tau the march accumulated, added to L. */
+LU_FN vec3 lu_k_rm_finish(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, vec3 L, vec3 tau) {
+    lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
+    int nl = lu_k_light_count(LU_CTX);
     vec3 end = P.background;
     if (hit.t >= 0.0f) {
         end = lu_v3s(0.0f);
@@ -203,13 +249,21 @@ LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, v
             lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
             vec3 f = lu_k_blinn_phong(hit.albedo, hit.specular, hit.shininess, hit.n, wo, ls.wl);
             if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-            float vis = lu_k_rm_visibility(LU_CTX, l, x, hit.n, P.map_res);
+            float vis = LU_K_RM_SURFACE_VIS(l, pixel, x, hit.n);
             if (vis <= 0.0f) continue;
-            vec3 tr = lu_k_rm_transmittance(LU_CTX, x, ls.wl, ls.dist);
+            vec3 tr = LU_K_RM_LIGHT_TR(l, x, ls);
             end = lu_v3_add(end, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), tr), vis));
         }
     }
-    return lu_v3_add(L, lu_v3_mul(T, end));
+    return lu_v3_add(L, lu_v3_mul(lu_v3_exp(lu_v3_neg(tau)), end));
+}
+
+/* Radiance along the camera ray o + t d of `pixel` in one pass. */
+LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec3 d, float u) {
+    vec3 L = lu_v3s(0.0f);
+    vec3 tau = lu_v3s(0.0f);
+    lu_k_rm_segment(LU_CTX, P, pixel, o, d, u, 0, LU_K_RM_MAX_STEPS, LU_REF(L), LU_REF(tau));
+    return lu_k_rm_finish(LU_CTX, P, pixel, o, d, L, tau);
 }
 
 /* Per-pixel jitter in [0, 1) (integer hash), or 0.5 without jitter. */

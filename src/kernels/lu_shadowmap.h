@@ -37,12 +37,19 @@ LU_FN float lu_k_shadow_visibility(LU_CTX_PARAM, int map, int res, vec3 uvd, flo
 /* Visibility of x in view vw (map index `map`, res x res): offset along n
  * (zero for points in a medium) by 1.5 texel footprints, PCF with a depth
  * bias of 2 footprints, so lit surfaces do not shadow themselves. Points
- * outside the view are lit. */
+ * outside the view are lit. Whether x is in the view is decided before the
+ * offset, and the offset point is clamped onto the map: near the seam of two
+ * cube faces the offset can cross into the neighbouring face, and treating
+ * it as outside drew lit lines through shadows along every seam. */
 LU_FN float lu_k_shadow_lookup(LU_CTX_PARAM, lu_k_lightview vw, int map, int res, vec3 x, vec3 n) {
-    float depth = vw.ortho != 0 ? 1.0f : lu_v3_len(lu_v3_sub(x, vw.origin));
+    vec3 uvd0 = lu_k_lightview_project(vw, x);
+    if (!lu_k_lightview_inside(uvd0)) return 1.0f;
+    float depth = vw.ortho != 0 ? 1.0f : uvd0.z;
     float texel = 2.0f * lu_max(vw.extent_u, vw.extent_v) * depth / lu_float(res);
     vec3 uvd = lu_k_lightview_project(vw, lu_v3_madd(x, n, 1.5f * texel));
-    if (!lu_k_lightview_inside(uvd)) return 1.0f;
+    if (uvd.z <= 0.0f) uvd = uvd0;
+    uvd.x = lu_clamp(uvd.x, 0.0f, 1.0f);
+    uvd.y = lu_clamp(uvd.y, 0.0f, 1.0f);
     return lu_k_shadow_visibility(LU_CTX, map, res, uvd, 2.0f * texel);
 }
 

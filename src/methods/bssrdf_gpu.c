@@ -7,7 +7,11 @@
 
 #include "backends/gpu.h"
 
-enum { B_DATA, B_SHADOW, B_SPLATS, B_GBUF, B_TSTART, B_TLIST, B_OUT, B_COUNT };
+enum { B_DATA, B_SHADOW, B_SPLATS, B_GBUF, B_TSTART, B_TLIST, B_OUT, B_SCATTER, B_COUNT };
+
+/* Splats one dispatch sums per tile: under llvmpipe's 65535 loop iterations
+ * per invocation (bssrdf.comp) with room for the shading pass's loops. */
+#define LU_BSSRDF_GPU_CHUNK 32768
 
 struct lu_bssrdf_gpu {
     lu_gpu_context *ctx;
@@ -96,7 +100,18 @@ lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, l
     lu_gpu_uniform_vec3(g->prog, "u_cam_right", f->cam_right.x, f->cam_right.y, f->cam_right.z);
     lu_gpu_uniform_vec3(g->prog, "u_cam_up", f->cam_up.x, f->cam_up.y, f->cam_up.z);
     lu_gpu_uniform_vec3(g->prog, "u_cam_forward", f->cam_forward.x, f->cam_forward.y, f->cam_forward.z);
-    r = lu_gpu_dispatch(g->prog, (unsigned)f->tiles_x, (unsigned)f->tiles_y, 1, err);
+    if (r == LU_OK) r = put(g, B_SCATTER, NULL, pixels * 4 * sizeof(float), err);
+    int longest = 0;
+    for (int t = 0; t < ntiles; t++)
+        if (f->tile_start[t + 1] - f->tile_start[t] > longest) longest = f->tile_start[t + 1] - f->tile_start[t];
+    lu_gpu_uniform_int(g->prog, "u_chunk_len", LU_BSSRDF_GPU_CHUNK);
+    for (int k0 = 0; r == LU_OK; k0 += LU_BSSRDF_GPU_CHUNK) {
+        int last = k0 + LU_BSSRDF_GPU_CHUNK >= longest;
+        lu_gpu_uniform_int(g->prog, "u_chunk_begin", k0);
+        lu_gpu_uniform_int(g->prog, "u_finish", last);
+        r = lu_gpu_dispatch(g->prog, (unsigned)f->tiles_x, (unsigned)f->tiles_y, 1, err);
+        if (last) break;
+    }
     if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
     return r;
 }

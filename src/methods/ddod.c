@@ -15,7 +15,7 @@
 #include "methods/ddod.h"
 #include "methods/gpu_scene.h"
 #include "methods/methods.h"
-#include "methods/opaque_accel.h"
+#include "methods/media_ray.h"
 #include "methods/tile_bins.h"
 
 /* ---- kernel context: the hooks of lu_ddod.h on the CPU ---- */
@@ -91,9 +91,7 @@ typedef struct ddod_state {
     lu_ddod_set set;
     float *sh;                 /* windowed copy of set.sh */
     int normalize;
-    lu_accel *opaque;
-    int *opaque_object;
-    lu_accel **boundary;
+    lu_media_rays mr;          /* opaque objects and boundary meshes (Embree) */
     int medium_count;
     float eps;
     lu_k_medium *km;
@@ -120,11 +118,7 @@ static void ddod_destroy(void *state) {
     lu_ddod_gpu_destroy(st->gpu);
     lu_ddod_set_free(&st->set);
     free(st->sh);
-    if (st->opaque) lu_accel_destroy(st->opaque);
-    for (int m = 0; m < st->medium_count && st->boundary; m++)
-        if (st->boundary[m]) lu_accel_destroy(st->boundary[m]);
-    free(st->boundary);
-    free(st->opaque_object);
+    lu_media_rays_free(&st->mr);
     free(st->km);
     free(st->kl);
     free(st->pixels);
@@ -207,14 +201,10 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
     lu_aabb bounds = lu_scene_bounds(scene);
     float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
     st->eps = 1e-5f * fmaxf(size, 1e-3f);
-    if (r == LU_OK) r = lu_opaque_accel_build(scene, &st->opaque, &st->opaque_object, err);
+    if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, 16, false, err);
     st->medium_count = scene->medium_count;
-    size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
-    st->boundary = calloc(nm, sizeof *st->boundary);
-    st->km = calloc(nm, sizeof *st->km);
-    if ((!st->boundary || !st->km) && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
-    for (int m = 0; m < scene->medium_count && r == LU_OK; m++)
-        r = lu_mesh_accel_build(&scene->media[m].boundary, &st->boundary[m], err);
+    st->km = calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *st->km);
+    if (!st->km && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_ddod_gpu_create(scene, &st->gpu, err);
     if (r != LU_OK) {
         ddod_destroy(st);
@@ -259,35 +249,30 @@ static void pixel_rows(void *ctx, int64_t begin, int64_t end, int thread) {
             memset(px, 0, LU_K_DDOD_PIXEL_FLOATS * sizeof *px);
             lu_vec3 o = c->position, d = lu_k_camera_dir(st->cam, (float)x + 0.5f, (float)y + 0.5f);
             lu_hit hit;
-            bool has_hit = st->opaque && lu_accel_closest(st->opaque, o, d, 0.0f, LU_K_FAR, &hit);
+            bool has_hit = st->mr.opaque && lu_accel_closest(st->mr.opaque, o, d, 0.0f, LU_K_FAR, &hit);
             float t_end = has_hit ? hit.t : LU_K_FAR;
-            /* The nearest medium's first span along the ray. */
+            /* The nearest medium's first span along the ray (media_ray.h). */
+            float sp[2 * LU_SCENE_MAX_MEDIA], nrm[LU_MR_NORMAL_FLOATS * LU_SCENE_MAX_MEDIA];
+            lu_media_ray_spans(&st->mr, o, d, t_end, sp, nrm);
             float t0 = 0.0f, t1 = 0.0f;
             int mi = -1;
-            lu_hit entry;
-            memset(&entry, 0, sizeof entry);
-            bool has_entry = false;
             for (int m = 0; m < st->medium_count; m++) {
-                lu_hit hs[2];
-                int n = lu_accel_all_hits(st->boundary[m], o, d, 0.0f, LU_K_FAR, hs, 2);
-                if (n <= 0) continue;
-                bool inside = lu_accel_inside(st->boundary[m], o);
-                float a = inside ? 0.0f : hs[0].t;
-                float b = inside ? hs[0].t : (n > 1 ? hs[1].t : LU_K_FAR);
-                if (mi >= 0 && a >= t0) continue;
+                if (!(sp[2 * m + 1] > sp[2 * m]) || (mi >= 0 && sp[2 * m] >= t0)) continue;
                 mi = m;
-                t0 = a;
-                t1 = b;
-                has_entry = !inside;
-                entry = hs[0];
+                t0 = sp[2 * m];
+                t1 = sp[2 * m + 1];
             }
+            lu_vec3 entry_n = mi >= 0 ? lu_v3(nrm[LU_MR_NORMAL_FLOATS * mi], nrm[LU_MR_NORMAL_FLOATS * mi + 1],
+                                              nrm[LU_MR_NORMAL_FLOATS * mi + 2])
+                                      : lu_v3s(0.0f);
+            bool has_entry = lu_v3_dot(entry_n, entry_n) > 0.0f;  /* zero when the camera is inside */
             lu_vec3 surf = lu_v3s(0.0f);
             lu_vec3 T = lu_v3s(1.0f);
             if (mi >= 0 && t0 < t_end) {
                 const lu_medium *med = &s->media[mi];
                 if (has_entry) {
                     /* Reflection at the entry, weighted by (1 - F_t) (Eq. 4). */
-                    lu_vec3 n = entry.ng;
+                    lu_vec3 n = entry_n;
                     if (lu_v3_dot(n, d) > 0.0f) n = lu_v3_neg(n);
                     lu_vec3 xe = lu_v3_madd(lu_v3_madd(o, d, t0), n, st->eps);
                     float fr = lu_k_fresnel_reflectance(lu_v3_dot(n, d), med->eta);
@@ -313,7 +298,7 @@ static void pixel_rows(void *ctx, int64_t begin, int64_t end, int thread) {
             }
             lu_vec3 end_rad = s->background;
             if (has_hit) {
-                const lu_object *ob = &s->objects[st->opaque_object[hit.mesh_id]];
+                const lu_object *ob = &s->objects[st->mr.opaque_object[hit.mesh_id]];
                 lu_vec3 n, ng;
                 lu_hit_normals(&ob->mesh, &hit, d, &n, &ng);
                 lu_vec3 xh = lu_v3_madd(lu_v3_madd(o, d, hit.t), ng, st->eps);

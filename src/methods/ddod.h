@@ -61,7 +61,7 @@ typedef struct lu_ddod_set {
 /* The precomputation with the on-disk cache: loads
  * <cache dir>/ddod-<key>.bin when it exists (a corrupt or foreign file is an
  * error naming it), otherwise computes and writes it. use_cache = false
- * computes without reading or writing. Fails with LU_ERR_INVALID_ARG for
+ * computes without reading or writing. Fails with LU_ERR_UNSUPPORTED for
  * media without a boundary mesh. */
 lu_result lu_ddod_prepare_set(const lu_scene *scene, const lu_ddod_params *p, bool use_cache, lu_ddod_set *out,
                               lu_error *err);

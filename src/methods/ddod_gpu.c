@@ -17,6 +17,7 @@ struct lu_ddod_gpu {
     lu_gpu_buffer *buf[B_COUNT];
     unsigned set_version;
     bool set_uploaded;
+    bool software;             /* llvmpipe: loop-iteration cap applies */
 };
 
 lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error *err) {
@@ -27,6 +28,11 @@ lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error 
     if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "ddod.comp", "#define LU_DDOD_PASS 1\n", &g->pass1, err);
     if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "ddod.comp", "#define LU_DDOD_PASS 2\n", &g->pass2, err);
     if (r == LU_OK) r = lu_gpu_scene_create(g->ctx, scene, &g->scene, err);
+    if (r == LU_OK) {
+        lu_gpu_info info;
+        lu_gpu_info_get(g->ctx, &info);
+        g->software = info.is_software;
+    }
     if (r != LU_OK) {
         lu_ddod_gpu_destroy(g);
         return r;
@@ -43,13 +49,6 @@ void lu_ddod_gpu_destroy(lu_ddod_gpu *g) {
     lu_gpu_program_destroy(g->pass2);
     lu_gpu_context_destroy(g->ctx);
     free(g);
-}
-
-/* Buffer slot i with `bytes` of data (a fresh buffer: the frame's arrays change size with the view). */
-static lu_result fresh(lu_ddod_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
-    lu_gpu_buffer_destroy(g->buf[i]);
-    g->buf[i] = NULL;
-    return lu_gpu_buffer_create(g->ctx, bytes ? bytes : 16, bytes ? data : NULL, &g->buf[i], err);
 }
 
 static void set_uniforms(lu_gpu_program *p, const lu_ddod_frame *f) {
@@ -69,23 +68,41 @@ lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_ddo
     size_t n = (size_t)f->count;
     lu_result r = lu_gpu_scene_update(g->scene, scene, err);
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
-    /* The sample set only changes with prepare: upload it once. */
-    if (r == LU_OK && !(g->set_uploaded && g->set_version == f->set_version)) {
-        r = fresh(g, B_SAMPLES, f->samples, n * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float), err);
-        if (r == LU_OK) r = fresh(g, B_SH, f->sh, n * (size_t)f->P.stride * sizeof(float), err);
-        if (r == LU_OK) r = fresh(g, B_RADIANCE, NULL, n * 4 * sizeof(float), err);
-        g->set_uploaded = r == LU_OK;
-        g->set_version = f->set_version;
-    }
-    if (r == LU_OK) r = fresh(g, B_PIXELS, f->pixels, pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float), err);
+    /* llvmpipe ends an invocation's loops after 65535 iterations in total
+     * (tests/test_gpu.c); pass 2 loops once per Gaussian of the tile. */
+    int longest = 0;
+    for (int t = 0; t < f->P.tiles_x * f->tiles_y; t++)
+        longest = f->tile_start[t + 1] - f->tile_start[t] > longest ? f->tile_start[t + 1] - f->tile_start[t] : longest;
+    if (g->software && longest > 60000)
+        return lu_fail(err, LU_ERR_LIMIT,
+                       "ddod: a 16x16 tile holds %d Gaussians, past llvmpipe's 65535 loop iterations per invocation "
+                       "(fewer ddod.samples or a larger image)",
+                       longest);
+    /* The sample set only changes with prepare: upload it once (NULL data keeps the contents). */
+    bool same = g->set_uploaded && g->set_version == f->set_version;
+    int b0 = LU_SCENE_BINDING_FREE;
     if (r == LU_OK)
-        r = fresh(g, B_TILE_START, f->tile_start, ((size_t)f->P.tiles_x * f->tiles_y + 1) * sizeof(int), err);
-    if (r == LU_OK) r = fresh(g, B_TILE_LIST, f->tile_list, f->list_count * sizeof(int), err);
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_SAMPLES], same ? NULL : f->samples,
+                              n * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float), b0 + B_SAMPLES, err);
     if (r == LU_OK)
-        r = fresh(g, B_ENV, f->env_sh, f->P.env ? (size_t)f->P.bands * f->P.bands * 3 * sizeof(float) : 0, err);
-    if (r == LU_OK && !(g->buf[B_OUT] && lu_gpu_buffer_size(g->buf[B_OUT]) == pixels * 3 * sizeof(float)))
-        r = fresh(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
-    for (int i = 0; i < B_COUNT && r == LU_OK; i++) r = lu_gpu_buffer_bind(g->buf[i], LU_SCENE_BINDING_FREE + i, err);
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_SH], same ? NULL : f->sh, n * (size_t)f->P.stride * sizeof(float),
+                              b0 + B_SH, err);
+    g->set_uploaded = r == LU_OK;
+    g->set_version = f->set_version;
+    if (r == LU_OK) r = lu_gpu_buffer_put(g->ctx, &g->buf[B_RADIANCE], NULL, n * 4 * sizeof(float), b0 + B_RADIANCE, err);
+    if (r == LU_OK)
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_PIXELS], f->pixels, pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float),
+                              b0 + B_PIXELS, err);
+    if (r == LU_OK)
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_TILE_START], f->tile_start,
+                              ((size_t)f->P.tiles_x * f->tiles_y + 1) * sizeof(int), b0 + B_TILE_START, err);
+    if (r == LU_OK)
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_TILE_LIST], f->tile_list, f->list_count * sizeof(int),
+                              b0 + B_TILE_LIST, err);
+    if (r == LU_OK)
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_ENV], f->P.env ? f->env_sh : NULL,
+                              f->P.env ? (size_t)f->P.bands * f->P.bands * 3 * sizeof(float) : 0, b0 + B_ENV, err);
+    if (r == LU_OK) r = lu_gpu_buffer_put(g->ctx, &g->buf[B_OUT], NULL, pixels * 3 * sizeof(float), b0 + B_OUT, err);
     if (r != LU_OK) return r;
     set_uniforms(g->pass1, f);
     set_uniforms(g->pass2, f);

@@ -143,9 +143,13 @@ static lu_result vgrid_build(vgrid *g, const lu_medium *m, const lu_accel *bound
     lu_parallel_for((int64_t)g->n[1] * g->n[2], 0, density_rows, &j, NULL);
     /* Inside fractions: lu_voxelize over the same grid (its voxel centres are
      * bounds.lo + (i + 0.5) h with h = longest side / resolution). */
-    lu_aabb box = {g->lo, lu_v3_add(g->lo, lu_v3((float)g->n[0] * g->h, (float)g->n[1] * g->h, (float)g->n[2] * g->h))};
     int vres = 0;
     for (int a = 0; a < 3; a++) vres = g->n[a] > vres ? g->n[a] : vres;
+    /* lu_voxelize takes n = ceil(extent / h): shorter axes get a quarter
+     * voxel less so float rounding cannot add a voxel. */
+    float ext_v[3];
+    for (int a = 0; a < 3; a++) ext_v[a] = ((float)g->n[a] - (g->n[a] == vres ? 0.0f : 0.25f)) * g->h;
+    lu_aabb box = {g->lo, lu_v3_add(g->lo, lu_v3(ext_v[0], ext_v[1], ext_v[2]))};
     lu_grid in;
     lu_result r = lu_voxelize(boundary, box, vres, 2, &in, err);
     if (r != LU_OK) {
@@ -153,9 +157,11 @@ static lu_result vgrid_build(vgrid *g, const lu_medium *m, const lu_accel *bound
         return r;
     }
     if (in.nx != g->n[0] || in.ny != g->n[1] || in.nz != g->n[2]) {
+        lu_fail(err, LU_ERR_INVALID_ARG, "ddod: voxelisation gave %dx%dx%d voxels, expected %dx%dx%d", in.nx, in.ny,
+                in.nz, g->n[0], g->n[1], g->n[2]);
         lu_grid_destroy(&in);
         vgrid_free(g);
-        return lu_fail(err, LU_ERR_INVALID_ARG, "ddod: voxelisation grid mismatch");
+        return LU_ERR_INVALID_ARG;
     }
     g->inside = in.data;
     if (opaque) {
@@ -907,7 +913,7 @@ lu_result lu_ddod_compute(const lu_scene *scene, const lu_ddod_params *p, lu_ddo
     for (int m = 0; m < scene->medium_count; m++) {
         const lu_medium *med = &scene->media[m];
         if (!med->has_boundary)
-            return lu_fail(err, LU_ERR_INVALID_ARG,
+            return lu_fail(err, LU_ERR_UNSUPPORTED,
                            "ddod: medium %d has no boundary mesh (ddod renders translucent objects: media inside a "
                            "closed mesh)",
                            m);

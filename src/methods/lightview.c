@@ -2,6 +2,7 @@
 #include "methods/lightview.h"
 
 #include <float.h>
+#include <stdlib.h>
 #include <string.h>
 
 static float far_distance(lu_vec3 from, lu_aabb b) {
@@ -55,10 +56,52 @@ void lu_lightviews_for_light(const lu_light *l, lu_aabb region, lu_lightviews *o
     }
 }
 
+lu_result lu_lightviews_for_scene(const lu_scene *scene, lu_aabb region, float cube_widen, lu_k_lightview **views,
+                                  float **packed, int **table, int *count, lu_error *err) {
+    size_t nls = scene->light_count ? (size_t)scene->light_count : 1u;
+    free(*views);
+    free(*packed);
+    free(*table);
+    *views = calloc(nls * 6, sizeof **views);
+    *packed = calloc(nls * 6 * 16, sizeof **packed);
+    *table = calloc(nls * 2, sizeof **table);
+    *count = 0;
+    if (!*views || !*packed || !*table) return lu_fail(err, LU_ERR_NOMEM, "out of memory for light views");
+    int k = 0;
+    for (int l = 0; l < scene->light_count; l++) {
+        if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) continue;
+        lu_lightviews lv;
+        lu_lightviews_for_light(&scene->lights[l], region, &lv);
+        (*table)[2 * k] = *count;
+        (*table)[2 * k + 1] = lv.count;
+        for (int v = 0; v < lv.count; v++) {
+            if (lv.count == 6) {
+                lv.view[v].extent_u *= cube_widen;
+                lv.view[v].extent_v *= cube_widen;
+            }
+            lu_lightview_pack(&lv.view[v], *packed + (size_t)*count * 16);
+            (*views)[(*count)++] = lv.view[v];
+        }
+        k++;
+    }
+    return LU_OK;
+}
+
 int lu_lightviews_select(const lu_lightviews *v, lu_vec3 x) {
     if (v->count == 0) return -1;
     int i = v->count == 6 ? lu_k_cube_face(lu_v3_sub(x, v->view[0].origin)) : 0;
     return lu_k_lightview_inside(lu_k_lightview_project(v->view[i], x)) ? i : -1;
+}
+
+void lu_lightview_pack(const lu_k_lightview *w, float *p) {
+    memcpy(p, &w->origin, 12);
+    p[3] = (float)w->ortho;
+    memcpy(p + 4, &w->axis_u, 12);
+    p[7] = w->extent_u;
+    memcpy(p + 8, &w->axis_v, 12);
+    p[11] = w->extent_v;
+    memcpy(p + 12, &w->axis_w, 12);
+    p[15] = w->depth_far;
 }
 
 typedef struct shadow_job {

@@ -13,6 +13,7 @@ static const lu_method *const k_methods[] = {
     &lu_method_bssrdf,
     &lu_method_pathtrace,
     &lu_method_raymarch,
+    &lu_method_afm,
     &lu_method_ddod,
 };
 

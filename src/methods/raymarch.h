@@ -10,10 +10,12 @@
 #include "kernels/lu_lightview.h"
 #include "kernels/lu_medium.h"
 #include "kernels/lu_optics.h"
+#include "methods/media_ray.h"
 
-/* Packed light view: origin + ortho, axis_u + extent_u, axis_v + extent_v,
- * axis_w + depth_far (16 floats, std430 vec4[4]). */
-#define LU_RM_VIEW_FLOATS 16
+/* Loop iterations one GPU invocation may run: Mesa's llvmpipe ends every
+ * loop of an invocation after 65535 in total (tests/test_gpu.c), so the GPU
+ * march is dispatched in segments that stay below this. */
+#define LU_RM_LOOP_BUDGET 60000
 
 typedef struct lu_raymarch_frame {
     int width, height;
@@ -29,7 +31,12 @@ typedef struct lu_raymarch_frame {
     const int *view_table;           /* light_count*2: first view, view count */
     const float *shadow;             /* view_count*map_res*map_res depths */
     unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
+    int max_steps;                   /* most march steps any camera ray takes (media diagonal / step) */
 } lu_raymarch_frame;
+
+/* The frame of one view march over mr's inputs: step = media-box diagonal / steps. */
+void lu_raymarch_frame_fill(lu_raymarch_frame *f, const lu_scene *scene, const lu_media_rays *mr, int steps, float eps,
+                            int jitter, int nl);
 
 typedef struct lu_raymarch_gpu lu_raymarch_gpu;
 

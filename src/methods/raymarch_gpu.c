@@ -7,14 +7,13 @@
 #include "methods/gpu_scene.h"
 #include "methods/raymarch.h"
 
-enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_COUNT };
+enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_STATE, B_COUNT };
 
 struct lu_raymarch_gpu {
     lu_gpu_context *ctx;
     lu_gpu_program *prog;
     lu_gpu_scene *scene;
     lu_gpu_buffer *buf[B_COUNT];
-    size_t size[B_COUNT];
     unsigned uploaded_version;      /* maps_version of the shadow maps on the GPU */
     bool uploaded;
 };
@@ -45,19 +44,7 @@ void lu_raymarch_gpu_destroy(lu_raymarch_gpu *g) {
 
 /* Uploads into slot i (growing it when needed) and binds it above the scene's bindings. */
 static lu_result put(lu_raymarch_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
-    if (bytes == 0) bytes = 16, data = NULL;
-    if (!g->buf[i] || g->size[i] < bytes) {
-        lu_gpu_buffer_destroy(g->buf[i]);
-        g->buf[i] = NULL;
-        lu_result r = lu_gpu_buffer_create(g->ctx, bytes, NULL, &g->buf[i], err);
-        if (r != LU_OK) return r;
-        g->size[i] = bytes;
-    }
-    if (data) {
-        lu_result r = lu_gpu_buffer_upload(g->buf[i], 0, data, bytes, err);
-        if (r != LU_OK) return r;
-    }
-    return lu_gpu_buffer_bind(g->buf[i], LU_SCENE_BINDING_FREE + i, err);
+    return lu_gpu_buffer_put(g->ctx, &g->buf[i], data, bytes, LU_SCENE_BINDING_FREE + i, err);
 }
 
 lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, const lu_raymarch_frame *f, lu_image *out,
@@ -78,13 +65,39 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
         g->uploaded_version = f->maps_version;
     }
     if (r == LU_OK) r = put(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_STATE, NULL, pixels * 8 * sizeof(float), err);
     if (r != LU_OK) return r;
     lu_gpu_uniform_int(g->prog, "u_map_res", f->map_res);
     lu_gpu_uniform_float(g->prog, "u_step", f->step);
     lu_gpu_uniform_float(g->prog, "u_eps", f->eps);
     lu_gpu_uniform_int(g->prog, "u_jitter", f->jitter);
     lu_gpu_uniform_vec3(g->prog, "u_background", f->background.x, f->background.y, f->background.z);
-    r = lu_gpu_dispatch(g->prog, (unsigned)(f->width + 7) / 8, (unsigned)(f->height + 7) / 8, 1, err);
+    /* Steps per dispatch: an upper bound of the loop iterations one step runs
+     * (llvmpipe counts each pass through a loop body plus one per loop
+     * entered): the step itself, the media loop, the light loop, and per
+     * light the 2x2 PCF taps, two more media loops, a 3-axis box clip per
+     * medium and each shadow ray's DDA pieces. Kept under llvmpipe's 65535
+     * iterations per invocation (lu_k_rm_segment) with one step's worth left
+     * for the finishing surface term (tests/test_gpu.c measures the cap). */
+    long nm = f->medium_count;
+    long per_step = 3 + nm;
+    for (int l = 0; l < f->light_count; l++) {
+        per_step += 12 + 6 * nm;
+        for (int m = 0; m < scene->medium_count; m++)
+            per_step += 1 + (long)lu_medium_to_kernel(&scene->media[m]).max_pieces;
+    }
+    int seg = (int)(LU_RM_LOOP_BUDGET / per_step) - 1;
+    if (seg < 1) seg = 1;
+    int total = f->max_steps + 1;
+    unsigned gx = (unsigned)(f->width + 7) / 8, gy = (unsigned)(f->height + 7) / 8;
+    for (int i0 = 0; r == LU_OK; i0 += seg) {
+        int last = i0 + seg >= total;
+        lu_gpu_uniform_int(g->prog, "u_seg_begin", i0);
+        lu_gpu_uniform_int(g->prog, "u_seg_end", last ? 1 << 30 : i0 + seg);
+        lu_gpu_uniform_int(g->prog, "u_finish", last);
+        r = lu_gpu_dispatch(g->prog, gx, gy, 1, err);
+        if (last) break;
+    }
     if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
     return r;
 }

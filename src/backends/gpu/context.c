@@ -237,6 +237,16 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     double t0 = lu_time_seconds();
     if (pref != LU_GPU_AUTO && pref != LU_GPU_HARDWARE && pref != LU_GPU_SOFTWARE)
         return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: unknown device preference %d", (int)pref);
+    /* LUCENT_GPU narrows an automatic choice (methods create AUTO contexts),
+     * so a user can insist on the hardware device or on llvmpipe. */
+    const char *env = getenv("LUCENT_GPU");
+    if (pref == LU_GPU_AUTO && env && *env) {
+        if (strcmp(env, "hardware") == 0) pref = LU_GPU_HARDWARE;
+        else if (strcmp(env, "software") == 0) pref = LU_GPU_SOFTWARE;
+        else if (strcmp(env, "auto") != 0)
+            return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: LUCENT_GPU=\"%.40s\" (expected auto, hardware or software)",
+                           env);
+    }
 
     /* libepoxy exits the process if it cannot dlopen a GL library when the
      * first GL function is resolved; check first so this is an error instead. */
@@ -256,6 +266,19 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
         return lu_fail(err, LU_ERR_BACKEND,
                        "gpu: no EGL display: EGL lacks EGL_EXT_platform_base (no EGL driver installed, "
                        "e.g. libegl-mesa0?)");
+
+    /* LUCENT_GPU_DEVICE=N: only EGL device N (as `lucent info --gpu` lists
+     * them), for machines with several GPUs. */
+    int only = -1;
+    const char *dev_env = getenv("LUCENT_GPU_DEVICE");
+    if (dev_env && *dev_env) {
+        char *end;
+        long v = strtol(dev_env, &end, 10);
+        if (*end || v < 0 || v >= LU_GPU_MAX_DEVICES)
+            return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: LUCENT_GPU_DEVICE=\"%.40s\" (expected 0 to %d)", dev_env,
+                           LU_GPU_MAX_DEVICES - 1);
+        only = (int)v;
+    }
 
     lu_gpu_context *ctx = calloc(1, sizeof *ctx);
     if (!ctx) return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
@@ -277,8 +300,15 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
             describe_device(devs[i], i, &c.software_device, c.desc, sizeof c.desc);
             append(ctx->info.device_list, sizeof ctx->info.device_list, "%s%s",
                    ctx->info.device_list[0] ? "; " : "", c.desc);
+            if (only >= 0 && i != only) continue;
             if (c.software_device) sw[nsw++] = c;
             else hw[nhw++] = c;
+        }
+        if (only >= ndev) {
+            lu_result e = lu_fail(err, LU_ERR_BACKEND, "gpu: LUCENT_GPU_DEVICE=%d but there are %d EGL devices (%.300s)",
+                                  only, (int)ndev, ndev ? ctx->info.device_list : "none");
+            free(ctx);
+            return e;
         }
         if (pref != LU_GPU_SOFTWARE)
             for (int i = 0; i < nhw; i++) cands[ncand++] = hw[i];
@@ -289,7 +319,11 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
         snprintf(ctx->info.device_list, sizeof ctx->info.device_list,
                  "(EGL_EXT_device_enumeration/EGL_EXT_platform_device not available)");
     }
-    if (has_ext(client, "EGL_MESA_platform_surfaceless")) {
+    if (only >= 0 && !can_enumerate) {
+        free(ctx);
+        return lu_fail(err, LU_ERR_BACKEND, "gpu: LUCENT_GPU_DEVICE is set but EGL cannot enumerate devices");
+    }
+    if (only < 0 && has_ext(client, "EGL_MESA_platform_surfaceless")) {
         candidate c = {EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, false,
                        "EGL_PLATFORM_SURFACELESS_MESA"};
         cands[ncand++] = c;

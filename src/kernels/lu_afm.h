@@ -1,0 +1,333 @@
+/* lu_afm.h — attenuation function maps (Delalandre et al.; kernel: C and GLSL).
+ *
+ * Map build (per light view, per texel): the texel's light ray (lu_lightview.h)
+ * enters the media at depth K_in and leaves at K_out (union of every medium's
+ * box clipped to its boundary span). The transmittance from the light,
+ * f(s) = F(s) * exp(-sigma_t * tau(s)), s = (t - K_in) / (K_out - K_in), is
+ * sampled at S points s_j = (j + 1/2) / S (exact cell-wise optical depth,
+ * lu_march.h; F is the product of Fresnel transmittances of the boundary
+ * crossings before s) and projected onto N DCT-II coefficients:
+ *     c_0 = (1/S) sum_j f(s_j),  c_k = (2/S) sum_j f(s_j) cos(pi k s_j),
+ *     f(s) ~ sum_k c_k cos(pi k s).
+ * The cosine basis is the even extension of f, so a smooth monotone
+ * transmittance has no end jump and converges fast; the Fresnel step at the
+ * entry sits at s = 0, not inside the interval. Coloured extinction needs
+ * one coefficient set per channel (C = 3); grey extinction (every medium's
+ * sigma_t with equal channels) stores one (C = 1). Beside the coefficients
+ * each texel keeps K_in, K_out and the transmittance past K_out (the
+ * "tail": all crossings, exit Fresnel included), per channel.
+ *
+ * Lookup at a point x seen from light l: its view (cube face for point
+ * lights), (u, v, depth); each of the 4 nearest texels gives
+ *   depth <= K_in: 1;  depth >= K_out: tail;  else the DCT sum clamped to
+ *   [tail, 1] (truncation ringing cannot leave the range a transmittance
+ *   along that ray can take);
+ * bilinearly weighted. Texels whose ray misses every medium store
+ * K_in = K_out = LU_K_FAR (transmittance 1 everywhere); points outside every
+ * view are outside the framed media's shadow volume: transmittance 1.
+ *
+ * Record of one texel (floats): [0] K_in, [1] K_out, [2..4] tail rgb,
+ * [5] unused, then coefficient k of channel c at 6 + k * C + c.
+ *
+ * Hooks the backend defines before including this file (beside those of
+ * lu_march.h and lu_medium.h: lu_k_density, lu_k_medium_count, lu_k_medium_get):
+ *   build:  float lu_k_afm_lspan(LU_CTX_PARAM, int texel, int m, int k)
+ *             k 0/1: start/end of medium m's first span on the texel's light ray
+ *             (boundary mesh, from the CPU's ray tracer; unbounded: 0, LU_K_FAR),
+ *             k 2/3: Fresnel transmittance at that start/end (1 without a boundary);
+ *           void lu_k_afm_store(LU_CTX_PARAM, int texel, int i, float value);
+ *   lookup: float lu_k_afm_fetch(LU_CTX_PARAM, int texel, int i);
+ *           int lu_k_afm_view_first(LU_CTX_PARAM, int l), lu_k_afm_view_count(LU_CTX_PARAM, int l);
+ *           lu_k_lightview lu_k_afm_view(LU_CTX_PARAM, int v);
+ *   render: int lu_k_afm_param(LU_CTX_PARAM, int i)  (i 0..3: res, coefs, samples, channels);
+ *           float lu_k_afm_cam_normal(LU_CTX_PARAM, int pixel, int m, int k)
+ *             (k 0..2: outward boundary normal where the camera ray enters medium m;
+ *             zero when it does not enter), float lu_k_afm_surface(LU_CTX_PARAM, int m, int k)
+ *             (medium m's boundary surface: 0..2 albedo, 3 shininess, 4..6 specular),
+ *           float lu_k_afm_surface_vis(LU_CTX_PARAM, int pixel, int l)
+ *             (opaque visibility of light l at the pixel's surface hit, traced exactly
+ *             by the CPU: the seed reads the shadow map there, which leaks or
+ *             bites at lit/shadowed edges on every pixel they cross),
+ *           and the hooks of lu_raymarch.h.
+ * Texel index: (view * res + j) * res + i.
+ *
+ * Rendering reuses the raymarch method's view march (lu_raymarch.h) with
+ * the map lookup in place of its exact shadow-ray optical depth, plus the
+ * boundary reflection of bounded media (Fresnel-weighted Blinn-Phong of the
+ * boundary surface, lit through the maps), as the reference renders it. A
+ * backend that only builds maps defines LU_K_AFM_MAP_ONLY (no lookup or
+ * render hooks needed then). */
+#ifndef LU_AFM_H
+#define LU_AFM_H
+
+#include "lu_kernel.h"
+#include "lu_lightview.h"
+#include "lu_march.h"
+#include "lu_medium.h"
+#include "lu_optics.h"
+
+#define LU_K_AFM_MAX_COEFS 64
+#define LU_K_AFM_MAX_SAMPLES 4096
+#define LU_K_AFM_HEADER 6
+
+struct lu_k_afm_params {
+    int res;        /* map resolution (res x res texels per view) */
+    int coefs;      /* N */
+    int samples;    /* S, transmittance samples along K_in..K_out */
+    int channels;   /* C: 1 (grey extinction) or 3 */
+};
+LU_TYPEDEF(lu_k_afm_params)
+
+/* One term of the cosine series by the Chebyshev recurrence
+ * cos((k+1)a) = 2 cos(a) cos(ka) - cos((k-1)a) (one cosine per sample):
+ * the build adds f cos(ka) to acc[k], the lookups add c_k cos(ka) to f/g.
+ * Loops over k run these four at a time: llvmpipe stops a shader
+ * invocation's loops after 65535 iterations in total, which a 500-step
+ * march with two lights and 16 coefficients would otherwise pass. */
+#define LU_K_AFM_ACC_TERM(k) \
+    acc[k] = lu_v3_madd(acc[k], f, cur); \
+    next = 2.0f * c1 * cur - prev; \
+    prev = cur; \
+    cur = next;
+#define LU_K_AFM_TERM3(k) \
+    f = lu_v3_madd(f, lu_v3(lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + 3 * (k)), \
+                            lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + 3 * (k) + 1), \
+                            lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + 3 * (k) + 2)), cur); \
+    next = 2.0f * c1 * cur - prev; \
+    prev = cur; \
+    cur = next;
+#define LU_K_AFM_TERM1(k) \
+    g += lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + (k)) * cur; \
+    next = 2.0f * c1 * cur - prev; \
+    prev = cur; \
+    cur = next;
+
+LU_FN int lu_k_afm_stride(lu_k_afm_params P) { return LU_K_AFM_HEADER + P.coefs * P.channels; }
+
+/* Normalisation of summed projections over S samples: c_0 / S, c_k * 2 / S. */
+LU_FN float lu_k_dct_norm(int k, int samples) { return (k == 0 ? 1.0f : 2.0f) / lu_float(samples); }
+
+/* ---- map build ---- */
+
+/* sigma_t-weighted optical depth of every medium over (t0, t1] of the
+ * texel's light ray, each clipped to its box and boundary span (exact per
+ * cell, lu_march.h). */
+LU_FN vec3 lu_k_afm_tau(LU_CTX_PARAM, int texel, lu_k_lightray ray, float t0, float t1) {
+    vec3 tau = lu_v3s(0.0f);
+    int nm = lu_k_medium_count(LU_CTX);
+    for (int m = 0; m < nm; m++) {
+        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+        float lo = lu_k_afm_lspan(LU_CTX, texel, m, 0), hi = lu_k_afm_lspan(LU_CTX, texel, m, 1);
+        float a = 0.0f, b = 0.0f;
+        if (!(hi > lo) ||
+            !lu_k_box_clip(md.bounds_lo, md.bounds_hi, ray.origin, ray.dir, lu_max(lo, t0), lu_min(hi, t1), LU_REF(a), LU_REF(b)))
+            continue;
+        float od = md.constant != 0 ? md.density_scale * (b - a)
+                                    : lu_k_optical_depth(LU_CTX, m, lu_k_medium_point(md, ray.origin),
+                                                         lu_k_medium_vector(md, ray.dir), a, b, md.max_pieces);
+        tau = lu_v3_madd(tau, lu_k_medium_sigma_t(md), od);
+    }
+    return tau;
+}
+
+/* Builds texel (i, j) of view vw (global index `texel`); returns nothing, writes
+ * the record through lu_k_afm_store. */
+LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview vw, int texel, int i, int j) {
+    lu_k_lightray ray = lu_k_lightview_ray(vw, (lu_float(i) + 0.5f) / lu_float(P.res), (lu_float(j) + 0.5f) / lu_float(P.res));
+    int nm = lu_k_medium_count(LU_CTX);
+    float k_in = LU_K_FAR, k_out = 0.0f;
+    float fresnel_total = 1.0f;
+    for (int m = 0; m < nm; m++) {
+        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+        float a = 0.0f, b = 0.0f;
+        float lo = lu_k_afm_lspan(LU_CTX, texel, m, 0), hi = lu_k_afm_lspan(LU_CTX, texel, m, 1);
+        if (!(hi > lo) || !lu_k_box_clip(md.bounds_lo, md.bounds_hi, ray.origin, ray.dir, lo, hi, LU_REF(a), LU_REF(b)))
+            continue;
+        k_in = lu_min(k_in, a);
+        k_out = lu_max(k_out, b);
+        /* Fresnel counts where the boundary is crossed, even if the box clips
+         * the density span shorter. */
+        fresnel_total *= lu_k_afm_lspan(LU_CTX, texel, m, 2) * lu_k_afm_lspan(LU_CTX, texel, m, 3);
+    }
+    if (!(k_out > k_in)) {
+        /* The ray misses every medium: transmittance 1 at every depth. */
+        lu_k_afm_store(LU_CTX, texel, 0, LU_K_FAR);
+        lu_k_afm_store(LU_CTX, texel, 1, LU_K_FAR);
+        for (int c = 2; c < lu_k_afm_stride(P); c++) lu_k_afm_store(LU_CTX, texel, c, c < 5 ? 1.0f : 0.0f);
+        return;
+    }
+    vec3 acc[LU_K_AFM_MAX_COEFS];
+    for (int k = 0; k < LU_K_AFM_MAX_COEFS; k++) acc[k] = lu_v3s(0.0f);
+    int S = P.samples;
+    float len = k_out - k_in;
+    vec3 tau = lu_v3s(0.0f);
+    float t_prev = k_in;
+    for (int s = 0; s < S; s++) {
+        float u = (lu_float(s) + 0.5f) / lu_float(S);
+        float t = k_in + u * len;
+        float fres = 1.0f;
+        for (int m = 0; m < nm; m++) {
+            float lo = lu_k_afm_lspan(LU_CTX, texel, m, 0), hi = lu_k_afm_lspan(LU_CTX, texel, m, 1);
+            if (!(hi > lo)) continue;
+            if (t > lo) fres *= lu_k_afm_lspan(LU_CTX, texel, m, 2);
+            if (t > hi) fres *= lu_k_afm_lspan(LU_CTX, texel, m, 3);
+        }
+        tau = lu_v3_add(tau, lu_k_afm_tau(LU_CTX, texel, ray, t_prev, t));
+        t_prev = t;
+        vec3 f = lu_v3_scale(lu_v3_exp(lu_v3_neg(tau)), fres);
+        /* f * cos(pi k u) for every k by the Chebyshev recurrence
+         * cos((k+1)a) = 2 cos(a) cos(ka) - cos((k-1)a): one cosine per sample. */
+        float c1 = lu_cos(LU_K_PI * u);
+        float prev = 1.0f, cur = c1;
+        float next = 0.0f;
+        acc[0] = lu_v3_add(acc[0], f);
+        int k = 1;
+        for (; k + 3 < P.coefs; k += 4) {
+            LU_K_AFM_ACC_TERM(k) LU_K_AFM_ACC_TERM(k + 1) LU_K_AFM_ACC_TERM(k + 2) LU_K_AFM_ACC_TERM(k + 3)
+        }
+        for (; k < P.coefs; k++) {
+            LU_K_AFM_ACC_TERM(k)
+        }
+    }
+    /* The rest of the way to K_out, for the tail. */
+    tau = lu_v3_add(tau, lu_k_afm_tau(LU_CTX, texel, ray, t_prev, k_out));
+    vec3 tail = lu_v3_scale(lu_v3_exp(lu_v3_neg(tau)), fresnel_total);
+    lu_k_afm_store(LU_CTX, texel, 0, k_in);
+    lu_k_afm_store(LU_CTX, texel, 1, k_out);
+    lu_k_afm_store(LU_CTX, texel, 2, tail.x);
+    lu_k_afm_store(LU_CTX, texel, 3, tail.y);
+    lu_k_afm_store(LU_CTX, texel, 4, tail.z);
+    lu_k_afm_store(LU_CTX, texel, 5, 0.0f);
+    for (int k = 0; k < P.coefs; k++) {
+        vec3 c = lu_v3_scale(acc[k], lu_k_dct_norm(k, S));
+        int base = LU_K_AFM_HEADER + k * P.channels;
+        lu_k_afm_store(LU_CTX, texel, base, c.x);
+        if (P.channels == 3) {
+            lu_k_afm_store(LU_CTX, texel, base + 1, c.y);
+            lu_k_afm_store(LU_CTX, texel, base + 2, c.z);
+        }
+    }
+}
+
+#ifndef LU_K_AFM_MAP_ONLY
+/* ---- lookup ---- */
+
+/* Transmittance stored in `texel` at depth `depth` along its light ray. */
+LU_FN vec3 lu_k_afm_texel_eval(LU_CTX_PARAM, lu_k_afm_params P, int texel, float depth) {
+    int base = texel * lu_k_afm_stride(P);
+    float k_in = lu_k_afm_fetch(LU_CTX, base, 0);
+    if (depth <= k_in) return lu_v3s(1.0f);
+    vec3 tail = lu_v3(lu_k_afm_fetch(LU_CTX, base, 2), lu_k_afm_fetch(LU_CTX, base, 3), lu_k_afm_fetch(LU_CTX, base, 4));
+    float k_out = lu_k_afm_fetch(LU_CTX, base, 1);
+    if (depth >= k_out) return tail;
+    float s = (depth - k_in) / (k_out - k_in);
+    float c1 = lu_cos(LU_K_PI * s);
+    float prev = 1.0f, cur = c1, next = 0.0f;
+    vec3 f;
+    if (P.channels == 3) {
+        f = lu_v3(lu_k_afm_fetch(LU_CTX, base, 6), lu_k_afm_fetch(LU_CTX, base, 7), lu_k_afm_fetch(LU_CTX, base, 8));
+        int k = 1;
+        for (; k + 3 < P.coefs; k += 4) {
+            LU_K_AFM_TERM3(k) LU_K_AFM_TERM3(k + 1) LU_K_AFM_TERM3(k + 2) LU_K_AFM_TERM3(k + 3)
+        }
+        for (; k < P.coefs; k++) {
+            LU_K_AFM_TERM3(k)
+        }
+    } else {
+        float g = lu_k_afm_fetch(LU_CTX, base, 6);
+        int k = 1;
+        for (; k + 3 < P.coefs; k += 4) {
+            LU_K_AFM_TERM1(k) LU_K_AFM_TERM1(k + 1) LU_K_AFM_TERM1(k + 2) LU_K_AFM_TERM1(k + 3)
+        }
+        for (; k < P.coefs; k++) {
+            LU_K_AFM_TERM1(k)
+        }
+        f = lu_v3s(g);
+    }
+    /* Ringing of the truncated series: clamp into [tail, 1]. */
+    return lu_v3(lu_clamp(f.x, tail.x, 1.0f), lu_clamp(f.y, tail.y, 1.0f), lu_clamp(f.z, tail.z, 1.0f));
+}
+
+/* Transmittance from light l to x, bilinear over the 4 nearest texels. */
+LU_FN vec3 lu_k_afm_transmittance(LU_CTX_PARAM, lu_k_afm_params P, int l, vec3 x) {
+    int count = lu_k_afm_view_count(LU_CTX, l);
+    if (count <= 0) return lu_v3s(1.0f);
+    int first = lu_k_afm_view_first(LU_CTX, l);
+    lu_k_lightview v0 = lu_k_afm_view(LU_CTX, first);
+    int face = count == 6 ? lu_k_cube_face(lu_v3_sub(x, v0.origin)) : 0;
+    lu_k_lightview vw = face == 0 ? v0 : lu_k_afm_view(LU_CTX, first + face);
+    vec3 uvd = lu_k_lightview_project(vw, x);
+    if (!lu_k_lightview_inside(uvd)) return lu_v3s(1.0f);
+    float fx = uvd.x * lu_float(P.res) - 0.5f, fy = uvd.y * lu_float(P.res) - 0.5f;
+    float x0 = lu_floor(fx), y0 = lu_floor(fy);
+    float ax = fx - x0, ay = fy - y0;
+    int view_base = (first + face) * P.res * P.res;
+    float hi = lu_float(P.res - 1);
+    int xa = lu_int(lu_clamp(x0, 0.0f, hi)), xb = lu_int(lu_clamp(x0 + 1.0f, 0.0f, hi));
+    int ya = view_base + P.res * lu_int(lu_clamp(y0, 0.0f, hi)), yb = view_base + P.res * lu_int(lu_clamp(y0 + 1.0f, 0.0f, hi));
+    /* Written out, not looped: see LU_K_AFM_TERM1. */
+    vec3 T = lu_v3_scale(lu_k_afm_texel_eval(LU_CTX, P, ya + xa, uvd.z), (1.0f - ax) * (1.0f - ay));
+    if (ax > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, ya + xb, uvd.z), ax * (1.0f - ay));
+    if (ay > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, yb + xa, uvd.z), (1.0f - ax) * ay);
+    if (ax > 0.0f && ay > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, yb + xb, uvd.z), ax * ay);
+    return T;
+}
+
+LU_FN lu_k_afm_params lu_k_afm_params_get(LU_CTX_PARAM) {
+    lu_k_afm_params P;
+    P.res = lu_k_afm_param(LU_CTX, 0);
+    P.coefs = lu_k_afm_param(LU_CTX, 1);
+    P.samples = lu_k_afm_param(LU_CTX, 2);
+    P.channels = lu_k_afm_param(LU_CTX, 3);
+    return P;
+}
+
+/* Include this file, not lu_raymarch.h, first: the march must see the hook.
+ * (Only a compile check that includes every kernel reaches the #else.) */
+#ifndef LU_RAYMARCH_H
+#define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_afm_transmittance(LU_CTX, lu_k_afm_params_get(LU_CTX), l, x)
+#define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_afm_surface_vis(LU_CTX, pixel, l)
+#endif
+#include "lu_raymarch.h"
+
+/* Light reflected by the boundaries of bounded media where the camera ray
+ * enters them: F_r * Blinn-Phong of the boundary surface, lit through the
+ * maps and the shadow maps. The camera transmittance before the entry is
+ * taken as 1 (exact when no other medium lies in front). */
+LU_FN vec3 lu_k_afm_boundary_reflection(LU_CTX_PARAM, lu_k_afm_params P, lu_k_rm_params R, int pixel, vec3 o, vec3 d) {
+    vec3 L = lu_v3s(0.0f);
+    int nm = lu_k_medium_count(LU_CTX);
+    int nl = lu_k_light_count(LU_CTX);
+    for (int m = 0; m < nm; m++) {
+        lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+        if (md.bounded == 0) continue;
+        vec3 n = lu_v3(lu_k_afm_cam_normal(LU_CTX, pixel, m, 0), lu_k_afm_cam_normal(LU_CTX, pixel, m, 1),
+                       lu_k_afm_cam_normal(LU_CTX, pixel, m, 2));
+        if (lu_v3_dot(n, n) <= 0.0f) continue;
+        float te = lu_k_rm_span(LU_CTX, pixel, m, 0);
+        vec3 x = lu_v3_madd(lu_v3_madd(o, d, te), n, R.eps);
+        float fr = lu_k_fresnel_reflectance(lu_v3_dot(n, d), md.eta);
+        vec3 albedo = lu_v3(lu_k_afm_surface(LU_CTX, m, 0), lu_k_afm_surface(LU_CTX, m, 1), lu_k_afm_surface(LU_CTX, m, 2));
+        vec3 spec = lu_v3(lu_k_afm_surface(LU_CTX, m, 4), lu_k_afm_surface(LU_CTX, m, 5), lu_k_afm_surface(LU_CTX, m, 6));
+        float shin = lu_k_afm_surface(LU_CTX, m, 3);
+        vec3 wo = lu_v3_neg(d);
+        for (int l = 0; l < nl; l++) {
+            lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
+            vec3 f = lu_k_blinn_phong(albedo, spec, shin, n, wo, ls.wl);
+            if (lu_v3_maxc(f) <= 0.0f || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+            float vis = lu_k_rm_visibility(LU_CTX, l, x, n, R.map_res);
+            if (vis <= 0.0f) continue;
+            vec3 T = lu_k_afm_transmittance(LU_CTX, P, l, x);
+            L = lu_v3_add(L, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), T), vis * fr));
+        }
+    }
+    return L;
+}
+
+/* Radiance along the camera ray of `pixel` (u: where in each step the sample sits). */
+LU_FN vec3 lu_k_afm_radiance(LU_CTX_PARAM, lu_k_afm_params P, lu_k_rm_params R, int pixel, vec3 o, vec3 d, float u) {
+    return lu_v3_add(lu_k_rm_radiance(LU_CTX, R, pixel, o, d, u), lu_k_afm_boundary_reflection(LU_CTX, P, R, pixel, o, d));
+}
+#endif
+
+#endif

@@ -1,0 +1,132 @@
+/* raymarch against the ground truth (`reference`, DESIGN.md §3).
+ *
+ * raymarch is the reference's single-scattering integral with the Simpson
+ * quadrature replaced by fixed midpoint steps (the optical depth to the
+ * lights is the reference's exact kernel). On scenes where that is the only
+ * difference — unbounded media, no opaque objects, so no shadow maps, no
+ * boundary Fresnel — its error against the reference must vanish as the
+ * step count grows: at least first order (each 4x more steps at least 4x
+ * less error; the midpoint rule is second order for smooth integrands, first
+ * order across a shadow or density discontinuity), down to the reference's
+ * own tolerance (0.1 %, doubled for the two renders' errors).
+ *
+ * Where opaque objects cast shadows through shadow maps, the error at fine
+ * steps is the maps' discretisation: it must shrink when the maps get finer.
+ *
+ * GPU = CPU on every bundled scene is test_cross_backend; here the GPU
+ * renders the finest case too, so the convergence holds on both backends. */
+#include "lu_test.h"
+
+#include <lucent/lucent.h>
+
+#include <string.h>
+
+#define W 32
+#define H 24
+
+static bool load(const char *name, lu_scene *s) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/scenes/%s.json", LU_SOURCE_DIR, name);
+    lu_error err = {0};
+    lu_result r = lu_scene_load(path, s, &err);
+    CHECK_OK(r, &err);
+    if (r != LU_OK) return false;
+    s->camera.width = W;
+    s->camera.height = H;
+    return true;
+}
+
+static bool render(const lu_scene *s, const char *method, lu_backend b, int steps, int shadow_res, lu_image *img) {
+    lu_kvlist set = {0};
+    lu_error err = {0};
+    if (steps > 0) {
+        double v = steps, r = shadow_res;
+        lu_kv_set_number(&set, "raymarch.steps", &v, 1, &err);
+        lu_kv_set_number(&set, "raymarch.shadow_res", &r, 1, &err);
+    }
+    lu_renderer *rd = NULL;
+    memset(img, 0, sizeof *img);
+    lu_result rc = lu_renderer_create(method, s, &set, b, &rd, &err);
+    if (rc == LU_OK) rc = lu_renderer_render(rd, s, img, &err);
+    CHECK_OK(rc, &err);
+    lu_renderer_destroy(rd);
+    lu_kv_free(&set);
+    return rc == LU_OK;
+}
+
+static double rel_l2(const lu_image *a, const lu_image *truth) {
+    lu_metrics m = {0};
+    lu_error err = {0};
+    CHECK_OK(lu_image_compare(a, truth, &m, &err), &err);
+    return m.rel_l2;
+}
+
+/* Error vs the reference for 32, 128, 512, 2048 steps. */
+static void test_converges_to_reference(void) {
+    static const char *const scenes[] = {"smoke_glow", "spot_shaft", "bunny_fog"};
+    static const int steps[] = {32, 128, 512, 2048};
+    for (int i = 0; i < 3; i++) {
+        lu_scene s;
+        if (!load(scenes[i], &s)) continue;
+        CHECK_MSG(s.object_count == 0 && !s.media[0].has_boundary, "%s: no longer a pure-medium scene", scenes[i]);
+        lu_image ref;
+        if (!render(&s, "reference", LU_BACKEND_CPU, 0, 0, &ref)) {
+            lu_scene_destroy(&s);
+            continue;
+        }
+        double e[4];
+        for (int k = 0; k < 4; k++) {
+            lu_image img;
+            e[k] = 1e30;
+            if (!render(&s, "raymarch", LU_BACKEND_CPU, steps[k], 512, &img)) continue;
+            e[k] = rel_l2(&img, &ref);
+            lu_image_destroy(&img);
+        }
+        fprintf(stderr, "  %-11s rel-L2 vs reference: %.2e (32 steps) %.2e (128) %.2e (512) %.2e (2048)\n", scenes[i],
+                e[0], e[1], e[2], e[3]);
+        for (int k = 1; k < 4; k++)
+            CHECK_MSG(e[k] <= 0.25 * e[k - 1] || e[k] <= 2e-3, "%s: %d steps %.3g, %d steps %.3g", scenes[i],
+                      steps[k - 1], e[k - 1], steps[k], e[k]);
+        CHECK_MSG(e[3] <= 2e-3, "%s: 2048 steps still %.3g from the reference", scenes[i], e[3]);
+        lu_image gpu;
+        if (render(&s, "raymarch", LU_BACKEND_GPU, steps[3], 512, &gpu)) {
+            double eg = rel_l2(&gpu, &ref);
+            fprintf(stderr, "  %-11s GPU, 2048 steps: %.2e\n", scenes[i], eg);
+            CHECK(eg <= 2e-3);
+            lu_image_destroy(&gpu);
+        }
+        lu_image_destroy(&ref);
+        lu_scene_destroy(&s);
+    }
+}
+
+/* Opaque occluders: at fine steps the shadow maps' resolution sets the error. */
+static void test_shadow_maps_converge(void) {
+    static const char *const scenes[] = {"smoke_box", "demo"};
+    for (int i = 0; i < 2; i++) {
+        lu_scene s;
+        if (!load(scenes[i], &s)) continue;
+        CHECK(s.object_count > 0);
+        lu_image ref, a, b;
+        if (render(&s, "reference", LU_BACKEND_CPU, 0, 0, &ref)) {
+            if (render(&s, "raymarch", LU_BACKEND_CPU, 1024, 64, &a)) {
+                if (render(&s, "raymarch", LU_BACKEND_CPU, 1024, 2048, &b)) {
+                    double ea = rel_l2(&a, &ref), eb = rel_l2(&b, &ref);
+                    fprintf(stderr, "  %-11s 1024 steps, rel-L2 vs reference: %.2e (64^2 maps) %.2e (2048^2)\n",
+                            scenes[i], ea, eb);
+                    CHECK_MSG(eb < ea, "%s: finer maps did not help (%.3g vs %.3g)", scenes[i], eb, ea);
+                    lu_image_destroy(&b);
+                }
+                lu_image_destroy(&a);
+            }
+            lu_image_destroy(&ref);
+        }
+        lu_scene_destroy(&s);
+    }
+}
+
+int main(void) {
+    RUN_TEST(test_converges_to_reference);
+    RUN_TEST(test_shadow_maps_converge);
+    TEST_EXIT();
+}
