@@ -29,14 +29,8 @@ struct lu_k_ctx {
     const int *tile_start, *tile_list;
 };
 
-static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
-    const lu_medium *med = &c->media[m];
-    return med->kind == LU_DENSITY_CONSTANT ? med->constant : lu_grid_sample(&med->grid, p);
-}
-static inline int lu_k_medium_count(const struct lu_k_ctx *c) { return c->nm; }
-static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { return c->km[m]; }
-static inline int lu_k_light_count(const struct lu_k_ctx *c) { return c->nl; }
-static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) { return c->kl[l]; }
+#include "methods/scene_hooks.h"
+
 static inline float lu_k_ddod_sample_f(const struct lu_k_ctx *c, int i, int k) {
     return c->samples[(size_t)i * LU_K_DDOD_SAMPLE_FLOATS + k];
 }
