@@ -60,7 +60,7 @@ static const lu_param_desc k_params[P_COUNT] = {
     [P_DIRS] = {"dirs", LU_PARAM_INT, 128, 8, 4096, NULL,
                 "uniformly distributed directions of the optical depth (the paper's 32 / 128 / 512)"},
     [P_SAMPLES] = {"samples", LU_PARAM_INT, 50000, 64, 2000000, NULL,
-                   "target number of Poisson-disk samples N_s (met within 3 %)"},
+                   "target number of Poisson-disk samples N_s (met within 5 %)"},
     [P_BANDS] = {"bands", LU_PARAM_INT, 5, 2, 8, NULL,
                  "SH bands per attenuation function: 3, 4, 5, 6, 7, 8 = 9, 16, 25, 36, 49, 64 coefficients"},
     [P_WIDTH] = {"width", LU_PARAM_FLOAT, 0.8, 0.2, 2.0, NULL,

@@ -14,7 +14,7 @@
  *   3. weighted Poisson-disk sampling (dart throwing on a spatial hash grid)
  *      with base radius r = cbrt(V / (2 N_s)) and a local radius mapped
  *      linearly from 1/rho into [r/2, 2r], the radii scaled by a common factor
- *      until the count is within 3 % of N_s;
+ *      until the count is within 5 % of N_s;
  *   4. per sample psi(w) = exp(-sigma_t tau(b, w)) and psi^F (times F_t at
  *      each boundary crossing) for the n directions, with the boundary from
  *      ray casts (Embree: exact, not voxelised) and the density integral

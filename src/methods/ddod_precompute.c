@@ -19,6 +19,13 @@
 #define DDOD_FIX 1048576.0f         /* 2^20: fixed point of the first-moment sums */
 #define DDOD_MAX_CROSSINGS 64
 
+/* Processor time of the process (all threads), for the timing breakdown. */
+static double cpu_seconds(void) {
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
+    return (double)ru.ru_utime.tv_sec + ru.ru_utime.tv_usec * 1e-6 + (double)ru.ru_stime.tv_sec + ru.ru_stime.tv_usec * 1e-6;
+}
+
 /* ---- directions and SH ---------------------------------------------------- */
 
 void lu_ddod_directions(int n, lu_vec3 *out) {
@@ -557,16 +564,20 @@ typedef struct pou_job {
     int cn[3], reach;
     float cell;
     const int *head, *next;
-    float *S;              /* per sample: sum of all Gaussians at its centre */
+    int64_t *start;        /* CSR: neighbours of sample i at [start[i], start[i + 1]) */
+    int *nb;
+    float *w;              /* gamma_j(b_i) / A_j: the Gaussian's shape, fixed during the fit */
+    bool fill;             /* false: count into start[i + 1]; true: write nb and w */
 } pou_job;
 
-static void pou_sums(void *ctx, int64_t begin, int64_t end, int thread) {
+/* Every sample j whose ball (3 s_j) holds b_i: counted, or written with its weight. */
+static void pou_neighbours(void *ctx, int64_t begin, int64_t end, int thread) {
     pou_job *j = ctx;
     for (int64_t i = begin; i < end; i++) {
         const float *si = j->rec + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
         lu_vec3 p = lu_v3(si[0], si[1], si[2]);
         int c[3] = {(int)((p.x - j->lo.x) / j->cell), (int)((p.y - j->lo.y) / j->cell), (int)((p.z - j->lo.z) / j->cell)};
-        float sum = 0.0f;
+        int64_t k = j->fill ? j->start[i] : 0;
         for (int cz = c[2] - j->reach; cz <= c[2] + j->reach; cz++)
             for (int cy = c[1] - j->reach; cy <= c[1] + j->reach; cy++)
                 for (int cx = c[0] - j->reach; cx <= c[0] + j->reach; cx++) {
@@ -576,15 +587,21 @@ static void pou_sums(void *ctx, int64_t begin, int64_t end, int thread) {
                         float ddx = p.x - s[0], ddy = p.y - s[1], ddz = p.z - s[2], sd = s[LU_K_DDOD_SAMPLE_S];
                         float d2 = ddx * ddx + ddy * ddy + ddz * ddz;
                         if (d2 >= LU_K_DDOD_CUTOFF * LU_K_DDOD_CUTOFF * sd * sd) continue;
-                        sum += s[LU_K_DDOD_SAMPLE_AMP] * expf(-0.5f * d2 / (sd * sd));
+                        if (j->fill) {
+                            j->nb[k] = q;
+                            j->w[k] = expf(-0.5f * d2 / (sd * sd));
+                        }
+                        k++;
                     }
                 }
-        j->S[i] = sum;
+        if (!j->fill) j->start[i + 1] = k;
     }
 }
 
 /* `iters` damped Jacobi updates A_i <- A_i / S(b_i)^0.7 of the amplitudes
- * towards sum_j A_j gamma_j(b_i) = 1 at every sample (see ddod.h, step 5). */
+ * towards sum_j A_j gamma_j(b_i) = 1 at every sample (see ddod.h, step 5).
+ * The Gaussians' shapes do not change, so the neighbour weights are found
+ * once and each iteration is a sparse product. */
 static lu_result fit_partition(float *rec, int count, int iters, lu_error *err) {
     if (iters <= 0 || count == 0) return LU_OK;
     pou_job j;
@@ -609,35 +626,53 @@ static lu_result fit_partition(float *rec, int count, int iters, lu_error *err) 
     j.lo = lo;
     size_t ncell = (size_t)j.cn[0] * j.cn[1] * j.cn[2];
     int *head = malloc(ncell * sizeof *head), *next = malloc((size_t)count * sizeof *next);
-    j.S = malloc((size_t)count * sizeof *j.S);
-    if (!head || !next || !j.S) {
-        free(head), free(next), free(j.S);
-        return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the partition fit");
-    }
-    for (size_t c = 0; c < ncell; c++) head[c] = -1;
-    for (int i = count - 1; i >= 0; i--) {
-        const float *s = rec + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
-        int c[3];
-        float pv[3] = {s[0] - lo.x, s[1] - lo.y, s[2] - lo.z};
-        for (int a = 0; a < 3; a++) {
-            c[a] = (int)(pv[a] / j.cell);
-            c[a] = c[a] < 0 ? 0 : (c[a] >= j.cn[a] ? j.cn[a] - 1 : c[a]);
+    j.start = calloc((size_t)count + 1, sizeof *j.start);
+    float *S = malloc((size_t)count * sizeof *S);
+    lu_result r = LU_OK;
+    if (!head || !next || !j.start || !S) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the partition fit");
+    if (r == LU_OK) {
+        for (size_t c = 0; c < ncell; c++) head[c] = -1;
+        for (int i = count - 1; i >= 0; i--) {
+            const float *s = rec + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+            int c[3];
+            float pv[3] = {s[0] - lo.x, s[1] - lo.y, s[2] - lo.z};
+            for (int a = 0; a < 3; a++) {
+                c[a] = (int)(pv[a] / j.cell);
+                c[a] = c[a] < 0 ? 0 : (c[a] >= j.cn[a] ? j.cn[a] - 1 : c[a]);
+            }
+            size_t ci = ((size_t)c[2] * j.cn[1] + c[1]) * j.cn[0] + c[0];
+            next[i] = head[ci];
+            head[ci] = i;
         }
-        size_t ci = ((size_t)c[2] * j.cn[1] + c[1]) * j.cn[0] + c[0];
-        next[i] = head[ci];
-        head[ci] = i;
+        j.head = head;
+        j.next = next;
+        lu_parallel_for(count, 0, pou_neighbours, &j, NULL);
+        for (int i = 0; i < count; i++) j.start[i + 1] += j.start[i];
+        j.nb = malloc((size_t)j.start[count] * sizeof *j.nb);
+        j.w = malloc((size_t)j.start[count] * sizeof *j.w);
+        if (!j.nb || !j.w) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the partition fit");
     }
-    j.head = head;
-    j.next = next;
-    for (int it = 0; it < iters; it++) {
-        lu_parallel_for(count, 0, pou_sums, &j, NULL);
-        for (int i = 0; i < count; i++)
-            if (j.S[i] > 0.0f) rec[(size_t)i * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] /= powf(j.S[i], 0.7f);
+    if (r == LU_OK) {
+        j.fill = true;
+        lu_parallel_for(count, 0, pou_neighbours, &j, NULL);
+        for (int it = 0; it < iters; it++) {
+            for (int i = 0; i < count; i++) {
+                double sum = 0.0;
+                for (int64_t k = j.start[i]; k < j.start[i + 1]; k++)
+                    sum += (double)rec[(size_t)j.nb[k] * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] * j.w[k];
+                S[i] = (float)sum;
+            }
+            for (int i = 0; i < count; i++)
+                if (S[i] > 0.0f) rec[(size_t)i * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] /= powf(S[i], 0.7f);
+        }
     }
     free(head);
     free(next);
-    free(j.S);
-    return LU_OK;
+    free(j.start);
+    free(j.nb);
+    free(j.w);
+    free(S);
+    return r;
 }
 
 /* ---- one medium, end to end ---- */
@@ -725,11 +760,11 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
     lu_vec3 sigma_t = lu_v3_add(m->sigma_a, m->sigma_s);
 
     /* 1 + 2: optical depth sweeps and the first moment */
-    double t0 = lu_time_seconds();
+    double t0 = lu_time_seconds(), c0 = cpu_seconds();
     if (r == LU_OK) r = vgrid_build(&g, m, boundary, opaque, p->res, err);
     if (r == LU_OK && !(T = calloc(g.count * 3, sizeof *T))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     if (r == LU_OK) r = first_moment(&g, dirs, p->dirs, lu_v3_avg(sigma_t), T, err);
-    double t1 = lu_time_seconds();
+    double t1 = lu_time_seconds(), c1 = cpu_seconds();
 
     /* divergence -> local radius */
     int cnt = 0;
@@ -763,7 +798,7 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
                     cnt++;
                 }
     }
-    double t2 = lu_time_seconds();
+    double t2 = lu_time_seconds(), c2 = cpu_seconds();
     if (r == LU_OK && cnt == 0) r = lu_fail(err, LU_ERR_INVALID_ARG, "ddod: medium %d has no density inside its boundary", mi);
 
     /* 3: 1/rho mapped linearly into [r/2, 2r] between its 2nd and 98th
@@ -800,14 +835,14 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
                 if (r != LU_OK || count == 0) break;
                 double ratio = (double)count / n_target;
                 if (getenv("LUCENT_DDOD_DEBUG")) fprintf(stderr, "ddod: sampling pass %d: scale %.4f, %d samples\n", it, scale, count);
-                if (fabs(ratio - 1.0) <= 0.03) break;
+                if (fabs(ratio - 1.0) <= 0.05) break;
                 scale *= (float)cbrt(ratio);
             }
             if (r == LU_OK && count == 0) r = lu_fail(err, LU_ERR_INVALID_ARG, "ddod: medium %d: no sample fits", mi);
         }
     }
     free(inv);
-    double t3 = lu_time_seconds();
+    double t3 = lu_time_seconds(), c3 = cpu_seconds();
 
     /* 4: attenuation per sample and direction, then SH */
     if (r == LU_OK) {
@@ -840,7 +875,7 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
         lu_parallel_for(p->dirs, 1, psi_dirs, &pj, "ddod: sample optical depth");
         if (atomic_load(&pj.failed)) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory in ray queries");
     }
-    double t4 = lu_time_seconds(), fit_s = 0.0;
+    double t4 = lu_time_seconds(), fit_s = 0.0, c4 = cpu_seconds(), fit_c = 0.0;
     if (r == LU_OK) {
         int base = out->count;
         size_t total = (size_t)base + count;
@@ -868,9 +903,10 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
                 s[LU_K_DDOD_SAMPLE_MEDIUM] = (float)mi;
                 s[7] = 0.0f;
             }
-            double tf = lu_time_seconds();
+            double tf = lu_time_seconds(), cf = cpu_seconds();
             r = fit_partition(out->samples + (size_t)base * LU_K_DDOD_SAMPLE_FLOATS, count, p->fit, err);
             fit_s = lu_time_seconds() - tf;
+            fit_c = cpu_seconds() - cf;
             out->timing.sampling_s += fit_s;
             sh_job sj = {dirs, p->dirs, out->bands, out->channels, out->stride, count, sigma_t, tau, ft,
                          out->sh + (size_t)base * out->stride};
@@ -878,7 +914,12 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
             out->count = (int)total;
         }
     }
-    double t5 = lu_time_seconds() - fit_s;
+    double t5 = lu_time_seconds() - fit_s, c5 = cpu_seconds() - fit_c;
+    if (getenv("LUCENT_DDOD_DEBUG"))
+        fprintf(stderr,
+                "ddod: medium %d processor s: moment sweeps %.2f, divergence %.2f, sampling %.2f, sample attenuation "
+                "%.2f, fit %.2f, SH %.2f\n",
+                mi, c1 - c0, c2 - c1, c3 - c2, c4 - c3, fit_c, c5 - c4);
     out->timing.optical_depth_s += (t1 - t0) + (t4 - t3);
     out->timing.divergence_s += t2 - t1;
     out->timing.sampling_s += t3 - t2;
@@ -897,12 +938,6 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
     vgrid_free(&g);
     if (boundary) lu_accel_destroy(boundary);
     return r;
-}
-
-static double cpu_seconds(void) {
-    struct rusage ru;
-    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
-    return (double)ru.ru_utime.tv_sec + ru.ru_utime.tv_usec * 1e-6 + (double)ru.ru_stime.tv_sec + ru.ru_stime.tv_usec * 1e-6;
 }
 
 lu_result lu_ddod_compute(const lu_scene *scene, const lu_ddod_params *p, lu_ddod_set *out, lu_error *err) {
