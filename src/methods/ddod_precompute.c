@@ -14,7 +14,7 @@
 #include "methods/methods.h"
 #include "methods/opaque_accel.h"
 
-#define DDOD_CACHE_VERSION 3
+#define DDOD_CACHE_VERSION 4
 #define DDOD_BLOCK_DENSITY 1.0e4f   /* per world unit: opaque voxels stop every ray */
 #define DDOD_FIX 1048576.0f         /* 2^20: fixed point of the first-moment sums */
 #define DDOD_MAX_CROSSINGS 64
