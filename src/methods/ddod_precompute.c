@@ -2,6 +2,7 @@
  * weighted Poisson-disk sampling, per-sample SH of the attenuation, and the
  * on-disk cache (see ddod.h for the steps). */
 #include "methods/ddod.h"
+#include "core/rng.h"
 
 #include <errno.h>
 #include <stdatomic.h>
@@ -47,16 +48,6 @@ void lu_ddod_sh_project(int n, const lu_vec3 *dirs, const float *f, int bands, f
     }
     for (int k = 0; k < nc; k++) c[k] = (float)(acc[k] * 4.0 * M_PI / n);
 }
-
-/* ---- RNG (splitmix64): deterministic, independent of threads ---- */
-
-static uint64_t rng_next(uint64_t *s) {
-    uint64_t z = (*s += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-static double rng_unit(uint64_t *s) { return (double)(rng_next(s) >> 11) * (1.0 / 9007199254740992.0); }
 
 /* ---- the voxel grid of one medium ------------------------------------------ */
 
@@ -385,7 +376,7 @@ static lu_result poisson_impl(const lu_ddod_field *f, float scale, int candidate
     uint64_t rs = 0x5eedull ^ ((uint64_t)seed << 32);
     int count = 0;
     for (int it = 0; it < candidates; it++) {
-        double u = rng_unit(&rs) * cdf[nv];
+        double u = lu_rng_unit(&rs) * cdf[nv];
         size_t lo = 0, hi = nv;  /* first v with cdf[v + 1] > u */
         while (lo < hi) {
             size_t mid = (lo + hi) / 2;
@@ -395,9 +386,9 @@ static lu_result poisson_impl(const lu_ddod_field *f, float scale, int candidate
         size_t v = lo < nv ? lo : nv - 1;
         if (!(f->radius[v] > 0.0f)) continue;
         int vx = (int)(v % f->n[0]), vy = (int)((v / f->n[0]) % f->n[1]), vz = (int)(v / ((size_t)f->n[0] * f->n[1]));
-        lu_vec3 p = lu_v3(f->lo.x + ((float)vx + (float)rng_unit(&rs)) * f->h,
-                          f->lo.y + ((float)vy + (float)rng_unit(&rs)) * f->h,
-                          f->lo.z + ((float)vz + (float)rng_unit(&rs)) * f->h);
+        lu_vec3 p = lu_v3(f->lo.x + ((float)vx + (float)lu_rng_unit(&rs)) * f->h,
+                          f->lo.y + ((float)vy + (float)lu_rng_unit(&rs)) * f->h,
+                          f->lo.z + ((float)vz + (float)lu_rng_unit(&rs)) * f->h);
         float rp = scale * f->radius[v];
         int c[3];
         float pv[3] = {p.x - f->lo.x, p.y - f->lo.y, p.z - f->lo.z};
