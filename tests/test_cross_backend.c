@@ -30,6 +30,9 @@ static const struct {
     {"raymarch.steps", 96},   {"raymarch.shadow_res", 256}, {"bssrdf.splats", 600},
     {"bssrdf.map_res", 256},  {"bssrdf.env_max", 2000}, {"afm.steps", 96},
     {"afm.map_res", 64},      {"afm.shadow_res", 256},
+    {"gradient.steps", 96},   {"gradient.shadow_res", 256}, {"gradient.grid", 32}, {"gradient.gaussians", 64},
+    {"rbf.steps", 96},        {"rbf.shadow_res", 256},      {"rbf.grid", 32},      {"rbf.gaussians", 64},
+    {"pervoxel.steps", 96},   {"pervoxel.shadow_res", 256}, {"pervoxel.grid", 32},
     {"ddod.res", 24},         {"ddod.dirs", 32},          {"ddod.samples", 2000},
     {"ddod.bands", 3},        {"ddod.fit", 2},            {"ddod.cache", 0},
 };

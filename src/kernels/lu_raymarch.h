@@ -140,6 +140,33 @@ LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     return lu_k_shadow_lookup(LU_CTX, vw, first + face, res, x, n);
 }
 
+/* In-scattered radiance per unit length at x towards -d (before the
+ * step's extinction): sum over media and lights of sigma_s D phase E T V.
+ * dens[m]: medium m's density at x. A method that precomputes the source
+ * term (gradient: a radiance grid) defines LU_K_RM_INSCATTER to its own
+ * lookup before including this file; the march stays this one. */
+LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float dens[LU_K_RM_MAX_MEDIA], int nm) {
+    vec3 S = lu_v3s(0.0f);
+    int nl = lu_k_light_count(LU_CTX);
+    for (int l = 0; l < nl; l++) {
+        lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
+        if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+        float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), map_res);
+        if (vis <= 0.0f) continue;
+        vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, LU_K_RM_LIGHT_TR(l, x, ls)), vis);
+        float cos_t = lu_v3_dot(d, ls.wl);
+        for (int m = 0; m < nm; m++) {
+            if (dens[m] <= 0.0f) continue;
+            lu_k_medium md = lu_k_medium_get(LU_CTX, m);
+            S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(md.sigma_s, E), dens[m] * lu_k_phase_hg(cos_t, md.g)));
+        }
+    }
+    return S;
+}
+#ifndef LU_K_RM_INSCATTER
+#define LU_K_RM_INSCATTER lu_k_rm_inscatter_exact
+#endif
+
 /* Range [t0, t1] of medium m on the camera ray of `pixel`, clipped to [0, t_end]. */
 LU_FN bool lu_k_rm_medium_range(LU_CTX_PARAM, lu_k_medium md, int m, int pixel, vec3 o, vec3 d, float t_end,
                                 LU_OUT(float) t0, LU_OUT(float) t1) {
@@ -163,7 +190,6 @@ LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
     lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
     float t_end = hit.t >= 0.0f ? hit.t : LU_K_FAR;
     int nm = lu_min(lu_k_medium_count(LU_CTX), LU_K_RM_MAX_MEDIA);
-    int nl = lu_k_light_count(LU_CTX);
     float ra[LU_K_RM_MAX_MEDIA];
     float rb[LU_K_RM_MAX_MEDIA];
     float t0 = LU_K_FAR, t1 = 0.0f;
@@ -204,21 +230,7 @@ LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
         }
         if (lu_v3_maxc(sig_t) <= 0.0f) continue;
         vec3 S = lu_v3s(0.0f);
-        if (scatters) {
-            for (int l = 0; l < nl; l++) {
-                lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
-                if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-                float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), P.map_res);
-                if (vis <= 0.0f) continue;
-                vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, LU_K_RM_LIGHT_TR(l, x, ls)), vis);
-                float cos_t = lu_v3_dot(d, ls.wl);
-                for (int m = 0; m < nm; m++) {
-                    if (dens[m] <= 0.0f) continue;
-                    lu_k_medium md = lu_k_medium_get(LU_CTX, m);
-                    S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(md.sigma_s, E), dens[m] * lu_k_phase_hg(cos_t, md.g)));
-                }
-            }
-        }
+        if (scatters) S = LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, dens, nm);
         /* The step's in-scattering weight, the integral of exp(-sigma s)
          * over [0, h] = h (1 - exp(-x)) / x with x = sigma h (series for
          * small x: 1 - exp(-x) cancels in float at fine steps). The camera

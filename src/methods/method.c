@@ -14,6 +14,9 @@ static const lu_method *const k_methods[] = {
     &lu_method_pathtrace,
     &lu_method_raymarch,
     &lu_method_afm,
+    &lu_method_gradient,
+    &lu_method_rbf,
+    &lu_method_pervoxel,
     &lu_method_ddod,
 };
 

@@ -11,6 +11,9 @@ extern const lu_method lu_method_bssrdf;
 extern const lu_method lu_method_pathtrace;
 extern const lu_method lu_method_raymarch;
 extern const lu_method lu_method_afm;
+extern const lu_method lu_method_gradient;
+extern const lu_method lu_method_rbf;
+extern const lu_method lu_method_pervoxel;
 extern const lu_method lu_method_ddod;
 
 /* The kernel-side light record (cone angles as cosines). */

@@ -1,0 +1,33 @@
+/* lu_gradient_params.h — the gradient kernel's parameter record (kernel: C
+ * and GLSL; no hooks, so drivers can include it on its own). */
+#ifndef LU_GRADIENT_PARAMS_H
+#define LU_GRADIENT_PARAMS_H
+
+#include "lu_kernel.h"
+
+LU_CONST int LU_K_GR_GRADIENT = 0;
+LU_CONST int LU_K_GR_RBF = 1;
+LU_CONST int LU_K_GR_PERVOXEL = 2;
+
+struct lu_k_gr_params {
+    vec3 cam;          /* camera position */
+    float delta1;      /* volume tracing interval; 0: exact optical depth */
+    vec3 lo;           /* radiance grid: world position of the box's low corner */
+    float delta2;      /* central-difference offset */
+    vec3 voxel;        /* radiance grid voxel size (voxel centres at lo + (i + 0.5) voxel) */
+    float g;           /* phase g of the media (one value for all) */
+    vec3 cell;         /* cell-list cell size (cells start at lo) */
+    float rbf_floor;   /* rbf: smallest weight counted (cut of the Gaussian tail) */
+    int nx, ny, nz;    /* radiance grid size */
+    int normalize;     /* 1: interpolate J / N (lu_gradient.h) */
+    int cx, cy, cz;    /* cell-list size */
+    int mode;          /* LU_K_GR_* */
+    int map_res;       /* shadow map resolution */
+    int pad0, pad1, pad2;
+};
+LU_TYPEDEF(lu_k_gr_params)
+
+/* Floats per stored sample (layout in lu_gradient.h). */
+#define LU_K_GR_SAMPLE_FLOATS 24
+
+#endif
