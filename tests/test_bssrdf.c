@@ -65,26 +65,6 @@ static double fresnel_r(double cos_i, double eta) {
     return 0.5 * (rs * rs + rp * rp);
 }
 
-static void gauss_legendre(int n, double *x, double *w) {
-    for (int i = 0; i < n; i++) {
-        double z = cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 1.0;
-        for (int it = 0; it < 100; it++) {
-            double p0 = 1.0, p1 = z;
-            for (int k = 2; k <= n; k++) {
-                double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = n * (z * p1 - p0) / (z * z - 1);
-            double dz = p1 / dp;
-            z -= dz;
-            if (fabs(dz) < 1e-15) break;
-        }
-        x[i] = z;
-        w[i] = 2.0 / ((1 - z * z) * dp * dp);
-    }
-}
-
 /* int_a^b f(r) dr by composite 32-node Gauss-Legendre on `panels` pieces,
  * geometric between a > 0 and b (the profiles vary on the scale of r). */
 typedef double (*rfn)(const void *ctx, double r);
@@ -92,7 +72,7 @@ static double integrate_r(rfn f, const void *ctx, double a, double b, int panels
     static double gx[32], gw[32];
     static int ready = 0;
     if (!ready) {
-        gauss_legendre(32, gx, gw);
+        lu_test_gauss_legendre(32, gx, gw);
         ready = 1;
     }
     double sum = 0.0;

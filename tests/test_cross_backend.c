@@ -33,6 +33,8 @@ static const struct {
     {"gradient.steps", 96},   {"gradient.shadow_res", 256}, {"gradient.grid", 32}, {"gradient.gaussians", 64},
     {"rbf.steps", 96},        {"rbf.shadow_res", 256},      {"rbf.grid", 32},      {"rbf.gaussians", 64},
     {"pervoxel.steps", 96},   {"pervoxel.shadow_res", 256}, {"pervoxel.grid", 32},
+    {"ddod.res", 16},         {"ddod.dirs", 16},          {"ddod.samples", 1000},
+    {"ddod.bands", 3},        {"ddod.fit", 2},            {"ddod.cache", 0},
 };
 
 static int compare_names(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }

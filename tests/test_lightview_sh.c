@@ -22,36 +22,15 @@ static lu_vec3 dir_of(double ct, double phi) {
     return lu_v3((float)(st * cos(phi)), (float)(st * sin(phi)), (float)ct);
 }
 
-/* Gauss-Legendre nodes/weights on [-1, 1] by Newton's method on P_n. */
-static void gauss_legendre(int n, double *x, double *w) {
-    for (int i = 0; i < n; i++) {
-        double z = cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 1.0;
-        for (int it = 0; it < 100; it++) {
-            double p0 = 1.0, p1 = z;
-            for (int k = 2; k <= n; k++) {
-                double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = n * (z * p1 - p0) / (z * z - 1);
-            double dz = p1 / dp;
-            z -= dz;
-            if (fabs(dz) < 1e-15) break;
-        }
-        x[i] = z;
-        w[i] = 2.0 / ((1 - z * z) * dp * dp);
-    }
-}
-
 static void test_sh_orthonormal(void) {
     /* Gauss-Legendre in cos(theta) (16 nodes: exact for the degree <= 10
      * polynomials that products of equal-m bands are) and a uniform rule in
      * phi (exact for the trigonometric degree <= 10 of the products). */
     enum { NT = 16, NP = 32 };
     double gx[NT], gw[NT];
-    gauss_legendre(NT, gx, gw);
+    lu_test_gauss_legendre(NT, gx, gw);
     static double gram[36][36];
-    float y[36];
+    float y[LU_SH_MAX_COEFFS];
     for (int i = 0; i < NT; i++) {
         for (int k = 0; k < NP; k++) {
             lu_k_sh_eval(dir_of(gx[i], 2.0 * M_PI * (k + 0.5) / NP), 6, y);
@@ -68,7 +47,7 @@ static void test_sh_orthonormal(void) {
 }
 
 static void test_sh_closed_forms(void) {
-    float y[36];
+    float y[LU_SH_MAX_COEFFS];
     lu_vec3 d = lu_v3_norm(lu_v3(0.3f, -0.5f, 0.81f));
     lu_k_sh_eval(d, 3, y);
     CHECK_NEAR(y[0], 0.282095, 1e-6);
@@ -92,7 +71,7 @@ static void test_sh_addition_theorem(void) {
             r[i] = (s >> 8) / 16777216.0;
         }
         lu_vec3 a = dir_of(2 * r[0] - 1, 2 * M_PI * r[1]), b = dir_of(2 * r[2] - 1, 2 * M_PI * r[3]);
-        float ya[36], yb[36];
+        float ya[LU_SH_MAX_COEFFS], yb[LU_SH_MAX_COEFFS];
         lu_k_sh_eval(a, 6, ya);
         lu_k_sh_eval(b, 6, yb);
         double t = lu_v3_dot(a, b);

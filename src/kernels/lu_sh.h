@@ -1,4 +1,4 @@
-/* lu_sh.h — real spherical harmonics up to band 5 (36 coefficients), kernel:
+/* lu_sh.h — real spherical harmonics up to band 7 (64 coefficients), kernel:
  * C and GLSL.
  *
  * Convention (Sloan's "Stupid SH Tricks", Ramamoorthi-Hanrahan): z is the
@@ -14,8 +14,8 @@
 
 #include "lu_kernel.h"
 
-#define LU_SH_MAX_BANDS 6
-#define LU_SH_MAX_COEFFS 36
+#define LU_SH_MAX_BANDS 8
+#define LU_SH_MAX_COEFFS 64
 
 LU_FN int lu_k_sh_count(int bands) { return bands * bands; }
 
@@ -26,7 +26,7 @@ LU_FN float lu_k_sh_norm(int l, int m) {
     return lu_sqrt(lu_float(2 * l + 1) * LU_K_INV_4PI * ratio);
 }
 
-/* y[0 .. bands^2 - 1] = Y_i(d) for unit d, bands in [1, 6]. */
+/* y[0 .. bands^2 - 1] = Y_i(d) for unit d, bands in [1, 8]. */
 LU_FN void lu_k_sh_eval(vec3 d, int bands, LU_OUT_ARRAY(float) y[LU_SH_MAX_COEFFS]) {
     float cm = 1.0f, sm = 0.0f;       /* Re, Im of (x + i y)^m */
     float qmm = 1.0f;                 /* Q_m^m = (2m-1)!! */

@@ -19,7 +19,7 @@
  *      the area its cell covers (A_vis / N_s * E(x_s));
  *   3. eye pass: the G-buffer of the camera's pixel-centre rays;
  *   4. binning: every splat's screen-aligned bounding rectangle
- *      (lu_k_bssrdf_splat_rect) into 16 x 16 pixel tiles, in splat order;
+ *      (lu_k_ball_screen_rect) into 16 x 16 pixel tiles, in splat order;
  *   5. splat + deferred pass (CPU loop or the GPU shader, same kernel):
  *      per pixel, the sum over its tile's splats of the same object, then
  *      lu_k_bssrdf_shade (F_t/pi weighting, Blinn-Phong highlight, shadows
@@ -33,6 +33,7 @@
 #include <sys/resource.h>
 
 #include "methods/bssrdf.h"
+#include "methods/tile_bins.h"
 #include "methods/bssrdf_gpu.h"
 #include "methods/bssrdf_profile.h"
 #include "methods/bssrdf_sampling.h"
@@ -184,8 +185,9 @@ typedef struct bssrdf_state {
     int splat_count, splat_cap;
     lu_k_gbuf *gbuf;
     size_t gbuf_cap;
-    int *tile_start, *tile_list, *tile_fill;
-    size_t tile_cap, list_cap;
+    lu_tile_bins bins;
+    lu_k_rect *rects;         /* per splat, for binning */
+    size_t rects_cap;
     struct lu_k_ctx kctx;
     lu_bssrdf_gpu *gpu;
     lu_bssrdf_frame_stats stats;
@@ -303,9 +305,8 @@ static void bssrdf_destroy(void *state) {
     free(st->shadow);
     free(st->splats);
     free(st->gbuf);
-    free(st->tile_start);
-    free(st->tile_list);
-    free(st->tile_fill);
+    lu_tile_bins_free(&st->bins);
+    free(st->rects);
     free(st);
 }
 
@@ -942,10 +943,10 @@ static void gbuffer_rows(void *ctx, int64_t begin, int64_t end, int thread) {
 static lu_k_rect splat_rect(const frame_job *j, const lu_k_splat *s, lu_k_bssrdf_mat m) {
     lu_vec3 cp = j->scene->camera.position;
     float radius = lu_k_bssrdf_radius(m), radius_t = lu_k_bssrdf_radius_t(m, s->thickness);
-    lu_k_rect r = lu_k_bssrdf_splat_rect(cp, j->cam.right, j->cam.up, j->cam.forward, j->width, j->height, s->position,
+    lu_k_rect r = lu_k_ball_screen_rect(cp, j->cam.right, j->cam.up, j->cam.forward, j->width, j->height, s->position,
                                          radius);
     if (radius_t > 0.0f) {
-        lu_k_rect b = lu_k_bssrdf_splat_rect(cp, j->cam.right, j->cam.up, j->cam.forward, j->width, j->height, s->back,
+        lu_k_rect b = lu_k_ball_screen_rect(cp, j->cam.right, j->cam.up, j->cam.forward, j->width, j->height, s->back,
                                              radius_t);
         if (b.x1 > b.x0 && b.y1 > b.y0) {
             if (r.x1 <= r.x0 || r.y1 <= r.y0) r = b;
@@ -958,37 +959,16 @@ static lu_k_rect splat_rect(const frame_job *j, const lu_k_splat *s, lu_k_bssrdf
     return r;
 }
 
-/* Counting sort of (splat, tile) pairs: per tile, splats in index order. */
+/* Per tile, splats in index order (tile_bins.h). */
 static lu_result bin_splats(bssrdf_state *st, frame_job *j, lu_error *err) {
-    int ntiles = j->tiles_x * j->tiles_y;
-    lu_result r = grow((void **)&st->tile_start, &st->tile_cap, (size_t)ntiles + 1, sizeof(int), err);
+    lu_result r = grow((void **)&st->rects, &st->rects_cap, st->splat_count ? (size_t)st->splat_count : 1u,
+                       sizeof *st->rects, err);
     if (r != LU_OK) return r;
-    free(st->tile_fill);
-    st->tile_fill = malloc((size_t)ntiles * sizeof(int));
-    if (!st->tile_fill) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
-    memset(st->tile_start, 0, ((size_t)ntiles + 1) * sizeof(int));
-    for (int i = 0; i < st->splat_count; i++) {
-        lu_k_bssrdf_mat m = lu_k_bssrdf_mat_load(&st->kctx, st->splats[i].object);
-        lu_k_rect rc = splat_rect(j, &st->splats[i], m);
-        if (rc.x1 <= rc.x0 || rc.y1 <= rc.y0) continue;
-        for (int ty = rc.y0 / TILE; ty <= (rc.y1 - 1) / TILE; ty++)
-            for (int tx = rc.x0 / TILE; tx <= (rc.x1 - 1) / TILE; tx++) st->tile_start[ty * j->tiles_x + tx + 1]++;
-    }
-    for (int t = 0; t < ntiles; t++) st->tile_start[t + 1] += st->tile_start[t];
-    size_t total = (size_t)st->tile_start[ntiles];
-    if (total > (size_t)INT32_MAX) return lu_fail(err, LU_ERR_LIMIT, "bssrdf: %zu splat-tile pairs", total);
-    r = grow((void **)&st->tile_list, &st->list_cap, total ? total : 1, sizeof(int), err);
-    if (r != LU_OK) return r;
-    memcpy(st->tile_fill, st->tile_start, (size_t)ntiles * sizeof(int));
-    for (int i = 0; i < st->splat_count; i++) {
-        lu_k_bssrdf_mat m = lu_k_bssrdf_mat_load(&st->kctx, st->splats[i].object);
-        lu_k_rect rc = splat_rect(j, &st->splats[i], m);
-        if (rc.x1 <= rc.x0 || rc.y1 <= rc.y0) continue;
-        for (int ty = rc.y0 / TILE; ty <= (rc.y1 - 1) / TILE; ty++)
-            for (int tx = rc.x0 / TILE; tx <= (rc.x1 - 1) / TILE; tx++) st->tile_list[st->tile_fill[ty * j->tiles_x + tx]++] = i;
-    }
-    st->stats.list_entries = (long long)total;
-    return LU_OK;
+    for (int i = 0; i < st->splat_count; i++)
+        st->rects[i] = splat_rect(j, &st->splats[i], lu_k_bssrdf_mat_load(&st->kctx, st->splats[i].object));
+    r = lu_tile_bins_build(&st->bins, j->width, j->height, TILE, st->splat_count, st->rects, err);
+    st->stats.list_entries = st->bins.entries;
+    return r;
 }
 
 /* Per tile: splat-major (each splat of the tile's list over the tile's
@@ -1014,8 +994,8 @@ static void splat_tiles(void *ctx, int64_t begin, int64_t end, int thread) {
                 if (g[n].object >= 0) mat[n] = lu_k_bssrdf_mat_load(kc, g[n].object);
                 any |= g[n].object >= 0 && mat[n].translucent;
             }
-        for (int k = st->tile_start[tile]; any && k < st->tile_start[tile + 1]; k++) {
-            const lu_k_splat s = st->splats[st->tile_list[k]];
+        for (int k = st->bins.start[tile]; any && k < st->bins.start[tile + 1]; k++) {
+            const lu_k_splat s = st->splats[st->bins.list[k]];
             for (int i = 0; i < n; i++) {
                 if (g[i].object != s.object || !mat[i].translucent) continue;
                 scatter[i] = lu_v3_add(scatter[i], lu_k_bssrdf_splat_eval(kc, mat[i], s, g[i].position, g[i].normal));
@@ -1086,12 +1066,12 @@ static lu_result bssrdf_render(void *state, const lu_scene *scene, lu_image *out
         f.gbuf = st->gbuf;
         f.width = c->width;
         f.height = c->height;
-        f.tile_start = st->tile_start;
+        f.tile_start = st->bins.start;
         f.tiles_x = j.tiles_x;
         f.tiles_y = j.tiles_y;
         f.tile = TILE;
-        f.tile_list = st->tile_list;
-        f.list_count = (size_t)st->tile_start[j.tiles_x * j.tiles_y];
+        f.tile_list = st->bins.list;
+        f.list_count = (size_t)st->bins.start[j.tiles_x * j.tiles_y];
         f.cam_right = j.cam.right;
         f.cam_up = j.cam.up;
         f.cam_forward = j.cam.forward;

@@ -4,6 +4,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/rng.h"
+
 void lu_surface_points_destroy(lu_surface_points *p) {
     if (!p) return;
     free(p->position);
@@ -12,13 +14,6 @@ void lu_surface_points_destroy(lu_surface_points *p) {
     memset(p, 0, sizeof *p);
 }
 
-static uint64_t rng_next(uint64_t *s) {
-    uint64_t z = (*s += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-static double rng_uniform(uint64_t *s) { return (double)(rng_next(s) >> 11) * (1.0 / 9007199254740992.0); }
 
 static void tri_verts(const lu_mesh *m, uint32_t t, lu_vec3 *a, lu_vec3 *b, lu_vec3 *c) {
     const uint32_t *ix = &m->indices[3u * t];
@@ -93,14 +88,14 @@ lu_result lu_surface_sample(const lu_mesh *mesh, int count, uint64_t seed, lu_su
     }
     uint64_t s = seed * 0x2545F4914F6CDD1Dull + 7;
     for (int i = 0; i < count; i++) {
-        double x = rng_uniform(&s) * acc;
+        double x = lu_rng_unit(&s) * acc;
         uint32_t lo = 0, hi = mesh->triangle_count - 1;
         while (lo < hi) {
             uint32_t mid = (lo + hi) / 2;
             if (cdf[mid] > x) hi = mid;
             else lo = mid + 1;
         }
-        double x1 = rng_uniform(&s), x2 = rng_uniform(&s), sq = sqrt(x1);
+        double x1 = lu_rng_unit(&s), x2 = lu_rng_unit(&s), sq = sqrt(x1);
         double l[3] = {1.0 - sq, (1.0 - x2) * sq, x2 * sq};
         lu_vec3 a, b, c;
         tri_verts(mesh, lo, &a, &b, &c);

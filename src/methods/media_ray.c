@@ -7,38 +7,20 @@
 
 #include "methods/lightview.h"
 #include "methods/methods.h"
+#include "methods/opaque_accel.h"
 
 lu_result lu_media_rays_init(lu_media_rays *mr, const lu_scene *scene, int shadow_res, bool want_normals,
                              lu_error *err) {
     memset(mr, 0, sizeof *mr);
     mr->shadow_res = shadow_res;
     mr->want_normals = want_normals;
-    lu_result r = LU_OK;
-    int opaque_count = 0;
-    for (int i = 0; i < scene->object_count; i++) opaque_count += scene->objects[i].material.type == LU_MATERIAL_DIFFUSE;
-    if (opaque_count) {
-        mr->opaque_object = calloc((size_t)opaque_count, sizeof *mr->opaque_object);
-        if (!mr->opaque_object) r = lu_fail(err, LU_ERR_NOMEM, "out of memory");
-        if (r == LU_OK) r = lu_accel_create(&mr->opaque, err);
-        for (int i = 0; i < scene->object_count && r == LU_OK; i++) {
-            if (scene->objects[i].material.type != LU_MATERIAL_DIFFUSE) continue;
-            uint32_t id;
-            r = lu_accel_add_mesh(mr->opaque, &scene->objects[i].mesh, &id, err);
-            if (r == LU_OK) mr->opaque_object[id] = i;
-        }
-        if (r == LU_OK) r = lu_accel_commit(mr->opaque, err);
-    }
+    lu_result r = lu_opaque_accel_build(scene, &mr->opaque, &mr->opaque_object, err);
     mr->medium_count = scene->medium_count;
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
     mr->boundary = calloc(nm, sizeof *mr->boundary);
     if (!mr->boundary && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "out of memory");
-    for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
-        if (!scene->media[m].has_boundary) continue;
-        uint32_t id;
-        r = lu_accel_create(&mr->boundary[m], err);
-        if (r == LU_OK) r = lu_accel_add_mesh(mr->boundary[m], &scene->media[m].boundary, &id, err);
-        if (r == LU_OK) r = lu_accel_commit(mr->boundary[m], err);
-    }
+    for (int m = 0; m < scene->medium_count && r == LU_OK; m++)
+        if (scene->media[m].has_boundary) r = lu_mesh_accel_build(&scene->media[m].boundary, &mr->boundary[m], err);
     return r;
 }
 

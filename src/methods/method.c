@@ -17,6 +17,7 @@ static const lu_method *const k_methods[] = {
     &lu_method_gradient,
     &lu_method_rbf,
     &lu_method_pervoxel,
+    &lu_method_ddod,
 };
 
 const lu_method *const *lu_methods(int *count) {

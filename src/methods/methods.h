@@ -14,6 +14,7 @@ extern const lu_method lu_method_afm;
 extern const lu_method lu_method_gradient;
 extern const lu_method lu_method_rbf;
 extern const lu_method lu_method_pervoxel;
+extern const lu_method lu_method_ddod;
 
 /* The kernel-side light record (cone angles as cosines). */
 static inline lu_k_light lu_light_to_kernel(const lu_light *l) {

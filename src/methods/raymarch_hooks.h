@@ -8,18 +8,11 @@
 #define LU_METHODS_RAYMARCH_HOOKS_H
 
 #include "methods/raymarch.h"
+#include "methods/scene_hooks.h"
 
 /* lu_k_rm_params of a frame (defined in raymarch.c, after the kernel). */
 struct lu_k_rm_params lu_raymarch_frame_params(const lu_raymarch_frame *f);
 
-static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
-    const lu_medium *med = &c->media[m];
-    return med->kind == LU_DENSITY_CONSTANT ? med->constant : lu_grid_sample(&med->grid, p);
-}
-static inline int lu_k_medium_count(const struct lu_k_ctx *c) { return c->nm; }
-static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { return c->km[m]; }
-static inline int lu_k_light_count(const struct lu_k_ctx *c) { return c->nl; }
-static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) { return c->kl[l]; }
 static inline float lu_k_shadow_depth(const struct lu_k_ctx *c, int map, int i, int j) {
     return c->f->shadow[((size_t)map * c->f->map_res + j) * c->f->map_res + i];
 }

@@ -21,6 +21,7 @@
 #include <string.h>
 
 #include "methods/methods.h"
+#include "methods/opaque_accel.h"
 
 /* ---- kernel context: how the shared kernels read density on the CPU ---- */
 struct lu_k_ctx {
@@ -582,20 +583,7 @@ static lu_result ref_prepare(const lu_scene *scene, const double *params, lu_bac
     float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
     st->eps = 1e-5f * fmaxf(size, 1e-3f);
 
-    int opaque_count = 0;
-    for (int i = 0; i < scene->object_count; i++) opaque_count += scene->objects[i].material.type == LU_MATERIAL_DIFFUSE;
-    if (opaque_count) {
-        st->opaque_object = calloc((size_t)opaque_count, sizeof *st->opaque_object);
-        if (!st->opaque_object) r = lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
-        if (r == LU_OK) r = lu_accel_create(&st->opaque, err);
-        for (int i = 0; i < scene->object_count && r == LU_OK; i++) {
-            if (scene->objects[i].material.type != LU_MATERIAL_DIFFUSE) continue;
-            uint32_t id;
-            r = lu_accel_add_mesh(st->opaque, &scene->objects[i].mesh, &id, err);
-            if (r == LU_OK) st->opaque_object[id] = i;
-        }
-        if (r == LU_OK) r = lu_accel_commit(st->opaque, err);
-    }
+    r = lu_opaque_accel_build(scene, &st->opaque, &st->opaque_object, err);
 
     st->medium_count = scene->medium_count;
     st->media = calloc((size_t)(scene->medium_count ? scene->medium_count : 1), sizeof *st->media);
@@ -609,10 +597,7 @@ static lu_result ref_prepare(const lu_scene *scene, const double *params, lu_bac
         mi->max_pieces = med->kind == LU_DENSITY_GRID ? med->grid.nx + med->grid.ny + med->grid.nz + 8 : 1;
         if (med->has_boundary) {
             mi->parity_box = lu_mesh_bounds(&med->boundary);
-            r = lu_accel_create(&mi->boundary, err);
-            uint32_t id;
-            if (r == LU_OK) r = lu_accel_add_mesh(mi->boundary, &med->boundary, &id, err);
-            if (r == LU_OK) r = lu_accel_commit(mi->boundary, err);
+            r = lu_mesh_accel_build(&med->boundary, &mi->boundary, err);
         }
     }
 

@@ -15,6 +15,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "core/rng.h"
 #include "lu_noise.h"
 
 #define MAX_RES 4096
@@ -47,14 +48,6 @@ static double smoothstep(double a, double b, double x) {
     return t * t * (3.0 - 2.0 * t);
 }
 
-/* Splitmix64: a tiny seeded generator for the Gaussians' placement. */
-static uint64_t splitmix(uint64_t *s) {
-    uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
-static double uniform01(uint64_t *s) { return (double)(splitmix(s) >> 11) * (1.0 / 9007199254740992.0); }
 
 /* Layered cube: average of the piecewise-constant layer profile over the
  * voxel's extent along the axis (exact box filter), via its antiderivative
@@ -326,8 +319,8 @@ lu_result lu_grid_procedural(const char *name, const lu_kvlist *params, lu_grid 
          * [min, max], every peak `amplitude`. */
         uint64_t state = G.seed;
         for (int i = 0; i < G.count; i++) {
-            for (int a = 0; a < 3; a++) gs[i].c[a] = G.lo[a] + G.size[a] * (0.15 + 0.7 * uniform01(&state));
-            double s = G.low + (G.high - G.low) * uniform01(&state);
+            for (int a = 0; a < 3; a++) gs[i].c[a] = G.lo[a] + G.size[a] * (0.15 + 0.7 * lu_rng_unit(&state));
+            double s = G.low + (G.high - G.low) * lu_rng_unit(&state);
             gs[i].inv2s2 = 1.0 / (2.0 * s * s);
             gs[i].amp = G.value;
         }

@@ -1,0 +1,76 @@
+#!/usr/bin/env bash
+# Regenerates the measurements of docs/ddod.md into docs/ddod/:
+#   bench_<scene>.csv   lucent bench rows (ddod, CPU and GPU) against the reference
+#   dirs.csv + sphere_dirs<N>.png / _diff.png   the paper's Table 1 (32/128/512 directions)
+#   precompute.csv      precomputation time breakdown at 128^3, 32 and 128 directions
+#   scaling.csv + scaling.png   frame time vs lights and vs samples (examples/ddod_scaling)
+#   <scene>.png, <scene>_diff.png   default-settings images and difference images
+# Usage: scripts/ddod_docs.sh [BUILD_DIR]   (run from the repository root)
+# Overrides: OUT (docs/ddod), REF (out/ddod_ref: reference images, rendered
+# when missing, minutes each), SCENES, SKIP_SCALING=1.
+set -eu
+build=${1:-build}
+L=$build/lucent
+OUT=${OUT:-docs/ddod}
+REF=${REF:-out/ddod_ref}
+SCENES=${SCENES:-"homogeneous_sphere cube_torus layered_cube"}
+export LUCENT_CACHE_DIR=${LUCENT_CACHE_DIR:-out/cache}
+export LUCENT_QUIET=${LUCENT_QUIET:-1}
+mkdir -p "$OUT" "$REF"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+# The precompute line is printed unless LUCENT_QUIET; keep it for parsing.
+run_ddod() { LUCENT_QUIET=0 "$L" render "$@" 2>&1 | grep "^ddod:\|^lucent render" || true; }
+
+for s in $SCENES; do
+  [ -f "$REF/$s.exr" ] || "$L" render "scenes/$s.json" -o "$REF/$s.exr"
+done
+
+# 1. bench rows, default settings (precomputation from the cache after the first run)
+for s in $SCENES; do
+  "$L" bench "scenes/$s.json" --methods ddod --backends cpu,gpu --frames 5 --reference "$REF/$s.exr" \
+    --csv "$OUT/bench_$s.csv" --save-images "$tmp/img_$s" >"$OUT/bench_$s.txt" 2>&1
+  for b in cpu gpu; do
+    f="$tmp/img_$s/ddod-$b.exr"
+    [ -f "$f" ] || continue
+    "$L" compare "$f" "$REF/$s.exr" -o "$OUT/${s}_${b}_diff.png" --json >"$OUT/${s}_${b}_compare.json"
+  done
+  run_ddod "scenes/$s.json" --method ddod -o "$OUT/$s.png" >/dev/null
+done
+
+# 2. Table 1: directions on the homogeneous sphere (fresh precomputation each)
+echo "dirs,samples,rel_l2,precompute_s,optical_depth_s,divergence_s,sampling_s,sh_s,processor_s" >"$OUT/dirs.csv"
+for d in 32 128 512; do
+  line=$(run_ddod scenes/homogeneous_sphere.json --method ddod --set ddod.dirs=$d --set ddod.cache=0 \
+    -o "$tmp/dirs$d.exr" | grep "^ddod:")
+  "$L" render scenes/homogeneous_sphere.json --method ddod --set ddod.dirs=$d -o "$OUT/sphere_dirs$d.png" 2>/dev/null
+  e=$("$L" compare "$tmp/dirs$d.exr" "$REF/homogeneous_sphere.exr" -o "$OUT/sphere_dirs${d}_diff.png" --scale 0.02 |
+    awk '$1 == "rel_l2" {print $2}')
+  n=$(echo "$line" | sed -n 's/^ddod: \([0-9]*\) samples.*/\1/p')
+  t=$(echo "$line" | sed -n 's/.*precompute \([0-9.]*\) s (optical depth \([0-9.]*\), divergence \([0-9.]*\), sampling \([0-9.]*\), SH \([0-9.]*\); processor time \([0-9.]*\) s).*/\1,\2,\3,\4,\5,\6/p')
+  echo "$d,$n,$e,$t" >>"$OUT/dirs.csv"
+done
+
+# 3. precomputation at 128^3 (the default res) with 32 and 128 directions: rows of dirs.csv
+grep -E "^(dirs|32|128)," "$OUT/dirs.csv" >"$OUT/precompute.csv"
+
+# 4. frame time vs lights and samples, both backends, one run
+if [ "${SKIP_SCALING:-0}" != 1 ]; then
+  "$build/examples/ddod_scaling" scenes/homogeneous_sphere.json 5 >"$OUT/scaling.csv"
+  gnuplot <<GP
+set terminal pngcairo size 900,380 font ",10"
+set output "$OUT/scaling.png"
+set datafile separator ","
+set multiplot layout 1,2
+set title "processor time per frame vs lights (50k samples)"
+set xlabel "lights"; set ylabel "processor ms / frame"; set logscale x 2; set key top left; set yrange [0:*]
+plot "< grep '^lights,.*,cpu' $OUT/scaling.csv" u 2:5 w lp t "CPU backend", \
+     "< grep '^lights,.*,gpu' $OUT/scaling.csv" u 2:5 w lp t "GPU backend (llvmpipe)"
+set title "processor time per frame vs samples (2 lights)"
+set xlabel "samples"; unset logscale x
+plot "< grep '^samples,.*,cpu' $OUT/scaling.csv" u 2:5 w lp t "CPU backend", \
+     "< grep '^samples,.*,gpu' $OUT/scaling.csv" u 2:5 w lp t "GPU backend (llvmpipe)"
+unset multiplot
+GP
+fi
+echo "written to $OUT"

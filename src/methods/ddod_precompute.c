@@ -1,0 +1,1177 @@
+/* ddod precomputation: optical depth sweeps, first moment and divergence,
+ * weighted Poisson-disk sampling, per-sample SH of the attenuation, and the
+ * on-disk cache (see ddod.h for the steps). */
+#include "methods/ddod.h"
+#include "core/rng.h"
+
+#include <errno.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+
+#include "methods/methods.h"
+#include "methods/opaque_accel.h"
+
+#define DDOD_CACHE_VERSION 4
+#define DDOD_BLOCK_DENSITY 1.0e4f   /* per world unit: opaque voxels stop every ray */
+#define DDOD_FIX 1048576.0f         /* 2^20: fixed point of the first-moment sums */
+#define DDOD_MAX_CROSSINGS 64
+
+/* Processor time of the process (all threads), for the timing breakdown. */
+static double cpu_seconds(void) {
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0.0;
+    return (double)ru.ru_utime.tv_sec + ru.ru_utime.tv_usec * 1e-6 + (double)ru.ru_stime.tv_sec + ru.ru_stime.tv_usec * 1e-6;
+}
+
+/* ---- directions and SH ---------------------------------------------------- */
+
+void lu_ddod_directions(int n, lu_vec3 *out) {
+    for (int i = 0; i < n; i++) {
+        double z = 1.0 - (2.0 * i + 1.0) / n;
+        double r = sqrt(fmax(0.0, 1.0 - z * z));
+        double phi = i * 2.39996322972865332; /* golden angle */
+        out[i] = lu_v3((float)(r * cos(phi)), (float)(r * sin(phi)), (float)z);
+    }
+}
+
+void lu_ddod_sh_project(int n, const lu_vec3 *dirs, const float *f, int bands, float *c) {
+    int nc = bands * bands;
+    double acc[LU_SH_MAX_COEFFS] = {0};
+    float y[LU_SH_MAX_COEFFS];
+    for (int j = 0; j < n; j++) {
+        lu_k_sh_eval(dirs[j], bands, y);
+        for (int k = 0; k < nc; k++) acc[k] += (double)f[j] * y[k];
+    }
+    for (int k = 0; k < nc; k++) c[k] = (float)(acc[k] * 4.0 * M_PI / n);
+}
+
+/* ---- the voxel grid of one medium ------------------------------------------ */
+
+typedef struct vgrid {
+    int n[3];
+    size_t count;
+    lu_vec3 lo;            /* corner: voxel i spans lo + [i, i + 1] h */
+    float h;
+    float *density;        /* D at voxel centres, unmasked */
+    float *inside;         /* fraction of the voxel inside the boundary */
+    float *blocked;        /* fraction inside opaque objects (NULL: none) */
+    float *perm[3];        /* masked density (blocked: DDOD_BLOCK_DENSITY), permuted per sweep axis */
+    float *perm_raw[3];    /* unmasked density, permuted */
+} vgrid;
+
+static void vgrid_free(vgrid *g) {
+    free(g->density);
+    free(g->inside);
+    free(g->blocked);
+    for (int a = 0; a < 3; a++) {
+        free(g->perm[a]);
+        free(g->perm_raw[a]);
+    }
+    memset(g, 0, sizeof *g);
+}
+
+/* Axis order of the sweep along axis a: slices along a, then in-slice axes
+ * b (fastest) and c. */
+static void axes_of(int a, int *b, int *c) {
+    *b = a == 0 ? 1 : 0;
+    *c = a == 2 ? 1 : 2;
+}
+
+static size_t vidx(const vgrid *g, int x, int y, int z) { return ((size_t)z * g->n[1] + y) * g->n[0] + x; }
+
+/* Index of native voxel (x, y, z) in the layout permuted for axis a. */
+static size_t pidx(const vgrid *g, int a, const int v[3]) {
+    int b, c;
+    axes_of(a, &b, &c);
+    return ((size_t)v[a] * g->n[c] + v[c]) * g->n[b] + v[b];
+}
+
+static float medium_density(const lu_medium *m, lu_vec3 p) {
+    if (m->kind == LU_DENSITY_CONSTANT) return m->constant;
+    return lu_grid_sample(&m->grid, lu_affine_point(&m->world_to_index, p));
+}
+
+static lu_vec3 voxel_centre(const vgrid *g, int x, int y, int z) {
+    return lu_v3(g->lo.x + ((float)x + 0.5f) * g->h, g->lo.y + ((float)y + 0.5f) * g->h, g->lo.z + ((float)z + 0.5f) * g->h);
+}
+
+typedef struct build_job {
+    vgrid *g;
+    const lu_medium *m;
+} build_job;
+
+static void density_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    build_job *j = ctx;
+    vgrid *g = j->g;
+    for (int64_t r = begin; r < end; r++) {
+        int y = (int)(r % g->n[1]), z = (int)(r / g->n[1]);
+        for (int x = 0; x < g->n[0]; x++) g->density[vidx(g, x, y, z)] = medium_density(j->m, voxel_centre(g, x, y, z));
+    }
+}
+
+/* Voxel grid over the boundary's box padded by one voxel (so every point of
+ * the box interpolates between voxel centres). */
+static lu_result vgrid_build(vgrid *g, const lu_medium *m, const lu_accel *boundary, const lu_accel *opaque, int res,
+                             lu_error *err) {
+    memset(g, 0, sizeof *g);
+    lu_aabb b = lu_mesh_bounds(&m->boundary);
+    lu_vec3 ext = lu_v3_sub(b.hi, b.lo);
+    float longest = fmaxf(lu_v3_maxc(ext), 1e-6f);
+    g->h = longest / (float)res;
+    g->lo = lu_v3_sub(b.lo, lu_v3s(g->h));
+    for (int a = 0; a < 3; a++) g->n[a] = (int)ceilf(lu_v3_get(ext, a) / g->h - 1e-4f) + 2;
+    for (int a = 0; a < 3; a++)
+        if (g->n[a] < 3) g->n[a] = 3;
+    g->count = (size_t)g->n[0] * g->n[1] * g->n[2];
+    g->density = malloc(g->count * sizeof(float));
+    for (int a = 0; a < 3; a++) {
+        g->perm[a] = malloc(g->count * sizeof(float));
+        g->perm_raw[a] = malloc(g->count * sizeof(float));
+        if (!g->perm[a] || !g->perm_raw[a]) g->density = (free(g->density), NULL);
+    }
+    if (!g->density) {
+        vgrid_free(g);
+        return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for a %dx%dx%d voxel grid", g->n[0], g->n[1], g->n[2]);
+    }
+    build_job j = {g, m};
+    lu_parallel_for((int64_t)g->n[1] * g->n[2], 0, density_rows, &j, NULL);
+    /* Inside fractions: lu_voxelize over the same grid (its voxel centres are
+     * bounds.lo + (i + 0.5) h with h = longest side / resolution). */
+    int vres = 0;
+    for (int a = 0; a < 3; a++) vres = g->n[a] > vres ? g->n[a] : vres;
+    /* lu_voxelize takes n = ceil(extent / h): shorter axes get a quarter
+     * voxel less so float rounding cannot add a voxel. */
+    float ext_v[3];
+    for (int a = 0; a < 3; a++) ext_v[a] = ((float)g->n[a] - (g->n[a] == vres ? 0.0f : 0.25f)) * g->h;
+    lu_aabb box = {g->lo, lu_v3_add(g->lo, lu_v3(ext_v[0], ext_v[1], ext_v[2]))};
+    lu_grid in;
+    lu_result r = lu_voxelize(boundary, box, vres, 2, &in, err);
+    if (r != LU_OK) {
+        vgrid_free(g);
+        return r;
+    }
+    if (in.nx != g->n[0] || in.ny != g->n[1] || in.nz != g->n[2]) {
+        lu_fail(err, LU_ERR_INVALID_ARG, "ddod: voxelisation gave %dx%dx%d voxels, expected %dx%dx%d", in.nx, in.ny,
+                in.nz, g->n[0], g->n[1], g->n[2]);
+        lu_grid_destroy(&in);
+        vgrid_free(g);
+        return LU_ERR_INVALID_ARG;
+    }
+    g->inside = in.data;
+    if (opaque) {
+        lu_grid bl;
+        r = lu_voxelize(opaque, box, vres, 2, &bl, err);
+        if (r != LU_OK) {
+            vgrid_free(g);
+            return r;
+        }
+        g->blocked = bl.data;
+    }
+    int v[3];
+    for (v[2] = 0; v[2] < g->n[2]; v[2]++)
+        for (v[1] = 0; v[1] < g->n[1]; v[1]++)
+            for (v[0] = 0; v[0] < g->n[0]; v[0]++) {
+                size_t i = vidx(g, v[0], v[1], v[2]);
+                float raw = g->density[i];
+                float masked = raw * g->inside[i];
+                if (g->blocked && g->blocked[i] > 0.5f) masked = DDOD_BLOCK_DENSITY;
+                for (int a = 0; a < 3; a++) {
+                    size_t p = pidx(g, a, v);
+                    g->perm[a][p] = masked;
+                    g->perm_raw[a][p] = raw;
+                }
+            }
+    return LU_OK;
+}
+
+/* ---- the sweep: optical depth for every voxel along one direction ---- */
+
+typedef struct sweep_out {
+    /* either: accumulate exp(-sigma_t tau) w into fixed-point sums (permuted layout of the axis) */
+    int32_t *acc[3];       /* per component, NULL when not accumulating */
+    float sigma_t;
+    /* or: store tau (density integral) in the permuted layout of the axis */
+    float *tau;
+} sweep_out;
+
+/* One direction w over grid g: slices along the dominant axis a, from the
+ * far side (+w) back. q holds tau + (L/2) D of the previous slice, padded
+ * by one voxel of zeros (outside the grid nothing attenuates). */
+static void sweep(const vgrid *g, lu_vec3 w, bool masked, float *q_prev, float *q_cur, const sweep_out *o) {
+    float wv[3] = {w.x, w.y, w.z};
+    int a = fabsf(wv[0]) >= fabsf(wv[1]) && fabsf(wv[0]) >= fabsf(wv[2]) ? 0 : (fabsf(wv[1]) >= fabsf(wv[2]) ? 1 : 2);
+    int b, c;
+    axes_of(a, &b, &c);
+    int na = g->n[a], nb = g->n[b], nc = g->n[c];
+    int pb = nb + 2;
+    size_t slice_pad = (size_t)pb * (nc + 2);
+    float inv = 1.0f / fabsf(wv[a]);
+    float ub = wv[b] * inv, uc = wv[c] * inv;   /* in-slice offset of the upstream point, voxels, in [-1, 1] */
+    float half_len = 0.5f * g->h * inv;         /* half the world length between slices */
+    int fb = (int)floorf(ub), fc = (int)floorf(uc);
+    float tb = ub - (float)fb, tc = uc - (float)fc;
+    if (fb >= 1) fb = 0, tb = 1.0f;
+    if (fc >= 1) fc = 0, tc = 1.0f;
+    float w00 = (1 - tb) * (1 - tc), w10 = tb * (1 - tc), w01 = (1 - tb) * tc, w11 = tb * tc;
+    ptrdiff_t off = (ptrdiff_t)fb + (ptrdiff_t)fc * pb;
+    memset(q_prev, 0, slice_pad * sizeof(float));
+    memset(q_cur, 0, slice_pad * sizeof(float));
+    const float *dens = masked ? g->perm[a] : g->perm_raw[a];
+    float fx = wv[0] * DDOD_FIX, fy = wv[1] * DDOD_FIX, fz = wv[2] * DDOD_FIX;
+    for (int step = 0; step < na; step++) {
+        int k = wv[a] > 0.0f ? na - 1 - step : step;
+        const float *ds = dens + (size_t)k * nb * nc;
+        for (int jc = 0; jc < nc; jc++) {
+            const float *drow = ds + (size_t)jc * nb;
+            const float *qp = q_prev + (size_t)(jc + 1) * pb + 1 + off;
+            float *qc = q_cur + (size_t)(jc + 1) * pb + 1;
+            size_t out_base = ((size_t)k * nc + jc) * nb;
+            for (int jb = 0; jb < nb; jb++) {
+                float up = w00 * qp[jb] + w10 * qp[jb + 1] + w01 * qp[jb + pb] + w11 * qp[jb + pb + 1];
+                float dh = half_len * drow[jb];
+                float tau = up + dh;
+                qc[jb] = tau + dh;
+                if (o->tau) o->tau[out_base + jb] = tau;
+                if (o->acc[0] && drow[jb] < DDOD_BLOCK_DENSITY) {
+                    float e = expf(-o->sigma_t * tau);
+                    o->acc[0][out_base + jb] += (int32_t)lrintf(e * fx);
+                    o->acc[1][out_base + jb] += (int32_t)lrintf(e * fy);
+                    o->acc[2][out_base + jb] += (int32_t)lrintf(e * fz);
+                }
+            }
+        }
+        float *t = q_prev;
+        q_prev = q_cur;
+        q_cur = t;
+    }
+}
+
+/* ---- step 1 + 2: first moment over all directions ---- */
+
+typedef struct moment_job {
+    const vgrid *g;
+    const lu_vec3 *dirs;
+    int ndirs, groups;
+    float sigma_t;
+    int32_t **acc;         /* groups x 3 axes x 3 components, permuted layouts */
+    float **scratch;       /* groups x 2 slices */
+} moment_job;
+
+static void moment_groups(void *ctx, int64_t begin, int64_t end, int thread) {
+    moment_job *j = ctx;
+    for (int64_t gi = begin; gi < end; gi++) {
+        float *q0 = j->scratch[2 * gi], *q1 = j->scratch[2 * gi + 1];
+        for (int d = (int)gi; d < j->ndirs; d += j->groups) {
+            lu_vec3 w = j->dirs[d];
+            float wv[3] = {w.x, w.y, w.z};
+            int a = fabsf(wv[0]) >= fabsf(wv[1]) && fabsf(wv[0]) >= fabsf(wv[2]) ? 0 : (fabsf(wv[1]) >= fabsf(wv[2]) ? 1 : 2);
+            int32_t **acc = j->acc + (gi * 3 + a) * 3;
+            sweep_out o = {{acc[0], acc[1], acc[2]}, j->sigma_t, NULL};
+            sweep(j->g, w, true, q0, q1, &o);
+        }
+    }
+}
+
+static size_t max_slice(const vgrid *g) {
+    size_t slice = 0;
+    for (int a = 0; a < 3; a++) {
+        int b, c;
+        axes_of(a, &b, &c);
+        size_t s = (size_t)(g->n[b] + 2) * (g->n[c] + 2);
+        slice = s > slice ? s : slice;
+    }
+    return slice;
+}
+
+/* T (3 floats per voxel, native layout) from the sweeps; sums are integers,
+ * so the result does not depend on how directions meet threads. */
+static lu_result first_moment(const vgrid *g, const lu_vec3 *dirs, int ndirs, float sigma_t, float *T, lu_error *err) {
+    int groups = lu_thread_count();
+    if (groups > ndirs) groups = ndirs;
+    if (groups > 8) groups = 8;
+    moment_job j = {g, dirs, ndirs, groups, sigma_t, NULL, NULL};
+    j.acc = calloc((size_t)groups * 9, sizeof *j.acc);
+    j.scratch = calloc((size_t)groups * 2, sizeof *j.scratch);
+    bool ok = j.acc && j.scratch;
+    size_t slice = max_slice(g);
+    for (int i = 0; ok && i < groups * 9; i++) ok = (j.acc[i] = calloc(g->count, sizeof(int32_t))) != NULL;
+    for (int i = 0; ok && i < groups * 2; i++) ok = (j.scratch[i] = malloc(slice * sizeof(float))) != NULL;
+    if (ok) {
+        lu_parallel_for(groups, 1, moment_groups, &j, "ddod: optical depth");
+        double wq = 4.0 * M_PI / ndirs / DDOD_FIX;
+        int v[3];
+        for (v[2] = 0; v[2] < g->n[2]; v[2]++)
+            for (v[1] = 0; v[1] < g->n[1]; v[1]++)
+                for (v[0] = 0; v[0] < g->n[0]; v[0]++) {
+                    int64_t s[3] = {0, 0, 0};
+                    for (int gi = 0; gi < groups; gi++)
+                        for (int a = 0; a < 3; a++) {
+                            size_t p = pidx(g, a, v);
+                            for (int comp = 0; comp < 3; comp++) s[comp] += j.acc[(gi * 3 + a) * 3 + comp][p];
+                        }
+                    float *t = T + 3 * vidx(g, v[0], v[1], v[2]);
+                    for (int comp = 0; comp < 3; comp++) t[comp] = (float)(s[comp] * wq);
+                }
+    }
+    for (int i = 0; j.acc && i < groups * 9; i++) free(j.acc[i]);
+    for (int i = 0; j.scratch && i < groups * 2; i++) free(j.scratch[i]);
+    free(j.acc);
+    free(j.scratch);
+    return ok ? LU_OK : lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the first-moment sums");
+}
+
+/* ---- step 3: weighted Poisson-disk sampling ---- */
+
+typedef struct pds_valid {
+    bool (*fn)(void *user, lu_vec3 p);
+    void *user;
+} pds_valid;
+
+static lu_result poisson_impl(const lu_ddod_field *f, float scale, int candidates, uint32_t seed, const pds_valid *valid,
+                              float **points_out, float **radii_out, int *count_out, lu_error *err) {
+    *points_out = NULL;
+    *radii_out = NULL;
+    *count_out = 0;
+    size_t nv = (size_t)f->n[0] * f->n[1] * f->n[2];
+    double *cdf = malloc((nv + 1) * sizeof *cdf);
+    if (!cdf) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for sampling");
+    /* Candidates per voxel ~ 1 / r^3: the density a Poisson-disk set of
+     * local radius r ends up with, so darts go where points can land. */
+    float rmax = 0.0f;
+    cdf[0] = 0.0;
+    for (size_t v = 0; v < nv; v++) {
+        float r = f->radius[v];
+        cdf[v + 1] = cdf[v] + (r > 0.0f ? 1.0 / ((double)r * r * r) : 0.0);
+        rmax = r > rmax ? r : rmax;
+    }
+    if (!(cdf[nv] > 0.0) || candidates <= 0) {
+        free(cdf);
+        return LU_OK;
+    }
+    rmax *= scale;
+    /* Spatial hash grid with cells of the largest radius: every conflict of
+     * a point lies in its 27 neighbouring cells. */
+    lu_vec3 ext = lu_v3((float)f->n[0] * f->h, (float)f->n[1] * f->h, (float)f->n[2] * f->h);
+    int cn[3];
+    for (int a = 0; a < 3; a++) {
+        cn[a] = (int)(lu_v3_get(ext, a) / rmax) + 1;
+        if (cn[a] > 1024) cn[a] = 1024;
+    }
+    float cell[3] = {ext.x / (float)cn[0], ext.y / (float)cn[1], ext.z / (float)cn[2]};
+    size_t ncell = (size_t)cn[0] * cn[1] * cn[2];
+    int *head = malloc(ncell * sizeof *head);
+    int cap = 4096;
+    float *pts = malloc((size_t)cap * 3 * sizeof *pts);
+    float *rad = malloc((size_t)cap * sizeof *rad);
+    int *next = malloc((size_t)cap * sizeof *next);
+    if (!head || !pts || !rad || !next) {
+        free(cdf), free(head), free(pts), free(rad), free(next);
+        return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for sampling");
+    }
+    for (size_t i = 0; i < ncell; i++) head[i] = -1;
+    uint64_t rs = 0x5eedull ^ ((uint64_t)seed << 32);
+    int count = 0;
+    for (int it = 0; it < candidates; it++) {
+        double u = lu_rng_unit(&rs) * cdf[nv];
+        size_t lo = 0, hi = nv;  /* first v with cdf[v + 1] > u */
+        while (lo < hi) {
+            size_t mid = (lo + hi) / 2;
+            if (cdf[mid + 1] > u) hi = mid;
+            else lo = mid + 1;
+        }
+        size_t v = lo < nv ? lo : nv - 1;
+        if (!(f->radius[v] > 0.0f)) continue;
+        int vx = (int)(v % f->n[0]), vy = (int)((v / f->n[0]) % f->n[1]), vz = (int)(v / ((size_t)f->n[0] * f->n[1]));
+        lu_vec3 p = lu_v3(f->lo.x + ((float)vx + (float)lu_rng_unit(&rs)) * f->h,
+                          f->lo.y + ((float)vy + (float)lu_rng_unit(&rs)) * f->h,
+                          f->lo.z + ((float)vz + (float)lu_rng_unit(&rs)) * f->h);
+        float rp = scale * f->radius[v];
+        int c[3];
+        float pv[3] = {p.x - f->lo.x, p.y - f->lo.y, p.z - f->lo.z};
+        for (int a = 0; a < 3; a++) {
+            c[a] = (int)(pv[a] / cell[a]);
+            c[a] = c[a] < 0 ? 0 : (c[a] >= cn[a] ? cn[a] - 1 : c[a]);
+        }
+        bool ok = true;
+        for (int dz = -1; dz <= 1 && ok; dz++)
+            for (int dy = -1; dy <= 1 && ok; dy++)
+                for (int dx = -1; dx <= 1 && ok; dx++) {
+                    int x = c[0] + dx, y = c[1] + dy, z = c[2] + dz;
+                    if (x < 0 || y < 0 || z < 0 || x >= cn[0] || y >= cn[1] || z >= cn[2]) continue;
+                    for (int q = head[((size_t)z * cn[1] + y) * cn[0] + x]; q >= 0; q = next[q]) {
+                        float ddx = pts[3 * q] - p.x, ddy = pts[3 * q + 1] - p.y, ddz = pts[3 * q + 2] - p.z;
+                        float m = rad[q] > rp ? rad[q] : rp;
+                        if (ddx * ddx + ddy * ddy + ddz * ddz < m * m) {
+                            ok = false;
+                            break;
+                        }
+                    }
+                }
+        if (!ok || (valid && !valid->fn(valid->user, p))) continue;
+        if (count == cap) {
+            cap *= 2;
+            float *np = realloc(pts, (size_t)cap * 3 * sizeof *np);
+            if (np) pts = np;
+            float *nr = np ? realloc(rad, (size_t)cap * sizeof *nr) : NULL;
+            if (nr) rad = nr;
+            int *nn = nr ? realloc(next, (size_t)cap * sizeof *nn) : NULL;
+            if (!nn) {
+                free(cdf), free(head), free(pts), free(rad), free(next);
+                return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %d samples", cap);
+            }
+            next = nn;
+        }
+        pts[3 * count] = p.x;
+        pts[3 * count + 1] = p.y;
+        pts[3 * count + 2] = p.z;
+        rad[count] = rp;
+        size_t ci = ((size_t)c[2] * cn[1] + c[1]) * cn[0] + c[0];
+        next[count] = head[ci];
+        head[ci] = count;
+        count++;
+    }
+    free(cdf);
+    free(head);
+    free(next);
+    *points_out = pts;
+    *radii_out = rad;
+    *count_out = count;
+    return LU_OK;
+}
+
+lu_result lu_ddod_poisson(const lu_ddod_field *f, float scale, int candidates, uint32_t seed, float **points,
+                          float **radii, int *count, lu_error *err) {
+    return poisson_impl(f, scale, candidates, seed, NULL, points, radii, count, err);
+}
+
+/* ---- step 4: attenuation at the samples ---- */
+
+typedef struct psi_job {
+    const vgrid *g;
+    const lu_medium *m;
+    const lu_accel *boundary, *opaque;
+    const lu_vec3 *dirs;
+    int ndirs;
+    const float *pts;
+    int count;
+    float *tau;            /* count x ndirs: density integral to the boundary (inf: blocked) */
+    float *ft;             /* count x ndirs: product of F_t over the crossings */
+    float **vol;           /* per thread: unmasked sweep (grid media) */
+    float **scratch;       /* per thread: 2 slices */
+    atomic_int failed;
+} psi_job;
+
+/* Trilinear in a permuted volume at world point p (clamped to voxel centres). */
+static float vol_sample(const vgrid *g, int a, const float *vol, lu_vec3 p) {
+    int b, c;
+    axes_of(a, &b, &c);
+    size_t stride[3];
+    stride[a] = (size_t)g->n[b] * g->n[c];
+    stride[b] = 1;
+    stride[c] = (size_t)g->n[b];
+    float pv[3] = {p.x, p.y, p.z}, lov[3] = {g->lo.x, g->lo.y, g->lo.z};
+    int i0[3];
+    float t[3];
+    for (int k = 0; k < 3; k++) {
+        float u = (pv[k] - lov[k]) / g->h - 0.5f;
+        u = u < 0.0f ? 0.0f : (u > (float)(g->n[k] - 1) ? (float)(g->n[k] - 1) : u);
+        int i = (int)u;
+        if (i > g->n[k] - 2) i = g->n[k] - 2;
+        i0[k] = i;
+        t[k] = u - (float)i;
+    }
+    size_t base = i0[0] * stride[0] + i0[1] * stride[1] + i0[2] * stride[2];
+    float acc = 0.0f;
+    for (int corner = 0; corner < 8; corner++) {
+        float wgt = 1.0f;
+        size_t o = base;
+        for (int k = 0; k < 3; k++) {
+            int bit = (corner >> k) & 1;
+            wgt *= bit ? t[k] : 1.0f - t[k];
+            o += bit ? stride[k] : 0;
+        }
+        acc += wgt * vol[o];
+    }
+    return acc;
+}
+
+static void psi_dirs(void *ctx, int64_t begin, int64_t end, int thread) {
+    psi_job *j = ctx;
+    const vgrid *g = j->g;
+    bool grid = j->m->kind == LU_DENSITY_GRID;
+    lu_hit hits[DDOD_MAX_CROSSINGS];
+    for (int64_t d = begin; d < end; d++) {
+        lu_vec3 w = j->dirs[d];
+        float wv[3] = {w.x, w.y, w.z};
+        int a = fabsf(wv[0]) >= fabsf(wv[1]) && fabsf(wv[0]) >= fabsf(wv[2]) ? 0 : (fabsf(wv[1]) >= fabsf(wv[2]) ? 1 : 2);
+        if (grid) {
+            sweep_out o = {{NULL, NULL, NULL}, 0.0f, j->vol[thread]};
+            sweep(g, w, false, j->scratch[2 * thread], j->scratch[2 * thread + 1], &o);
+        }
+        for (int i = 0; i < j->count; i++) {
+            lu_vec3 b = lu_v3(j->pts[3 * i], j->pts[3 * i + 1], j->pts[3 * i + 2]);
+            size_t at = (size_t)i * j->ndirs + (size_t)d;
+            if (j->opaque && lu_accel_occluded(j->opaque, b, w, 0.0f, 1e30f)) {
+                j->tau[at] = INFINITY;
+                j->ft[at] = 0.0f;
+                continue;
+            }
+            int n = lu_accel_all_hits(j->boundary, b, w, 0.0f, 1e30f, hits, DDOD_MAX_CROSSINGS);
+            if (n < 0) {
+                atomic_store(&j->failed, 1);
+                n = 0;
+            }
+            if (n > DDOD_MAX_CROSSINGS) n = DDOD_MAX_CROSSINGS;
+            /* b is inside: spans [0, t0], [t1, t2], ... */
+            float tau = 0.0f, ft = 1.0f, start = 0.0f;
+            for (int k = 0; k < n; k++) {
+                ft *= lu_k_fresnel_transmittance(lu_v3_dot(hits[k].ng, w), j->m->eta);
+                if ((k & 1) == 0) {
+                    float t = hits[k].t;
+                    if (grid)
+                        tau += vol_sample(g, a, j->vol[thread], lu_v3_madd(b, w, start)) -
+                               vol_sample(g, a, j->vol[thread], lu_v3_madd(b, w, t));
+                    else tau += j->m->constant * (t - start);
+                } else {
+                    start = hits[k].t;
+                }
+            }
+            j->tau[at] = tau > 0.0f ? tau : 0.0f;
+            j->ft[at] = ft;
+        }
+    }
+}
+
+/* ---- step 5: partition of unity ---- */
+
+typedef struct pou_job {
+    float *rec;            /* sample records (LU_K_DDOD_SAMPLE_FLOATS each) */
+    int count;
+    lu_vec3 lo;
+    int cn[3], reach;
+    float cell;
+    const int *head, *next;
+    int64_t *start;        /* CSR: neighbours of sample i at [start[i], start[i + 1]) */
+    int *nb;
+    float *w;              /* gamma_j(b_i) / A_j: the Gaussian's shape, fixed during the fit */
+    bool fill;             /* false: count into start[i + 1]; true: write nb and w */
+} pou_job;
+
+/* Every sample j whose ball (3 s_j) holds b_i: counted, or written with its weight. */
+static void pou_neighbours(void *ctx, int64_t begin, int64_t end, int thread) {
+    pou_job *j = ctx;
+    for (int64_t i = begin; i < end; i++) {
+        const float *si = j->rec + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+        lu_vec3 p = lu_v3(si[0], si[1], si[2]);
+        int c[3] = {(int)((p.x - j->lo.x) / j->cell), (int)((p.y - j->lo.y) / j->cell), (int)((p.z - j->lo.z) / j->cell)};
+        int64_t k = j->fill ? j->start[i] : 0;
+        for (int cz = c[2] - j->reach; cz <= c[2] + j->reach; cz++)
+            for (int cy = c[1] - j->reach; cy <= c[1] + j->reach; cy++)
+                for (int cx = c[0] - j->reach; cx <= c[0] + j->reach; cx++) {
+                    if (cx < 0 || cy < 0 || cz < 0 || cx >= j->cn[0] || cy >= j->cn[1] || cz >= j->cn[2]) continue;
+                    for (int q = j->head[((size_t)cz * j->cn[1] + cy) * j->cn[0] + cx]; q >= 0; q = j->next[q]) {
+                        const float *s = j->rec + (size_t)q * LU_K_DDOD_SAMPLE_FLOATS;
+                        float ddx = p.x - s[0], ddy = p.y - s[1], ddz = p.z - s[2], sd = s[LU_K_DDOD_SAMPLE_S];
+                        float d2 = ddx * ddx + ddy * ddy + ddz * ddz;
+                        if (d2 >= LU_K_DDOD_CUTOFF * LU_K_DDOD_CUTOFF * sd * sd) continue;
+                        if (j->fill) {
+                            j->nb[k] = q;
+                            j->w[k] = expf(-0.5f * d2 / (sd * sd));
+                        }
+                        k++;
+                    }
+                }
+        if (!j->fill) j->start[i + 1] = k;
+    }
+}
+
+/* `iters` damped Jacobi updates A_i <- A_i / S(b_i)^0.7 of the amplitudes
+ * towards sum_j A_j gamma_j(b_i) = 1 at every sample (see ddod.h, step 5).
+ * The Gaussians' shapes do not change, so the neighbour weights are found
+ * once and each iteration is a sparse product. */
+static lu_result fit_partition(float *rec, int count, int iters, lu_error *err) {
+    if (iters <= 0 || count == 0) return LU_OK;
+    pou_job j;
+    memset(&j, 0, sizeof j);
+    j.rec = rec;
+    j.count = count;
+    float smax = 0.0f, ssum = 0.0f;
+    lu_vec3 lo = lu_v3s(1e30f), hi = lu_v3s(-1e30f);
+    for (int i = 0; i < count; i++) {
+        const float *s = rec + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+        smax = fmaxf(smax, s[LU_K_DDOD_SAMPLE_S]);
+        ssum += s[LU_K_DDOD_SAMPLE_S];
+        lo = lu_v3_min(lo, lu_v3(s[0], s[1], s[2]));
+        hi = lu_v3_max(hi, lu_v3(s[0], s[1], s[2]));
+    }
+    /* cells of the mean support radius; search as far as the largest reaches */
+    j.cell = fmaxf(LU_K_DDOD_CUTOFF * ssum / (float)count, 1e-6f);
+    lu_vec3 ext = lu_v3_sub(hi, lo);
+    for (int a = 0; a < 3; a++) j.cn[a] = (int)fminf(lu_v3_get(ext, a) / j.cell, 1000.0f) + 1;
+    j.cell = fmaxf(j.cell, fmaxf(ext.x / (float)j.cn[0], fmaxf(ext.y / (float)j.cn[1], ext.z / (float)j.cn[2])));
+    j.reach = (int)ceilf(LU_K_DDOD_CUTOFF * smax / j.cell);
+    j.lo = lo;
+    size_t ncell = (size_t)j.cn[0] * j.cn[1] * j.cn[2];
+    int *head = malloc(ncell * sizeof *head), *next = malloc((size_t)count * sizeof *next);
+    j.start = calloc((size_t)count + 1, sizeof *j.start);
+    float *S = malloc((size_t)count * sizeof *S);
+    lu_result r = LU_OK;
+    if (!head || !next || !j.start || !S) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the partition fit");
+    if (r == LU_OK) {
+        for (size_t c = 0; c < ncell; c++) head[c] = -1;
+        for (int i = count - 1; i >= 0; i--) {
+            const float *s = rec + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+            int c[3];
+            float pv[3] = {s[0] - lo.x, s[1] - lo.y, s[2] - lo.z};
+            for (int a = 0; a < 3; a++) {
+                c[a] = (int)(pv[a] / j.cell);
+                c[a] = c[a] < 0 ? 0 : (c[a] >= j.cn[a] ? j.cn[a] - 1 : c[a]);
+            }
+            size_t ci = ((size_t)c[2] * j.cn[1] + c[1]) * j.cn[0] + c[0];
+            next[i] = head[ci];
+            head[ci] = i;
+        }
+        j.head = head;
+        j.next = next;
+        lu_parallel_for(count, 0, pou_neighbours, &j, NULL);
+        for (int i = 0; i < count; i++) j.start[i + 1] += j.start[i];
+        j.nb = malloc((size_t)j.start[count] * sizeof *j.nb);
+        j.w = malloc((size_t)j.start[count] * sizeof *j.w);
+        if (!j.nb || !j.w) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the partition fit");
+    }
+    if (r == LU_OK) {
+        j.fill = true;
+        lu_parallel_for(count, 0, pou_neighbours, &j, NULL);
+        for (int it = 0; it < iters; it++) {
+            for (int i = 0; i < count; i++) {
+                double sum = 0.0;
+                for (int64_t k = j.start[i]; k < j.start[i + 1]; k++)
+                    sum += (double)rec[(size_t)j.nb[k] * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] * j.w[k];
+                S[i] = (float)sum;
+            }
+            for (int i = 0; i < count; i++)
+                if (S[i] > 0.0f) rec[(size_t)i * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] /= powf(S[i], 0.7f);
+        }
+    }
+    free(head);
+    free(next);
+    free(j.start);
+    free(j.nb);
+    free(j.w);
+    free(S);
+    return r;
+}
+
+/* ---- one medium, end to end ---- */
+
+typedef struct valid_ctx {
+    const lu_medium *m;
+    const lu_accel *boundary, *opaque;
+    const vgrid *g;
+} valid_ctx;
+
+/* Density > 0, inside the boundary, outside opaque objects; the ray-cast
+ * inside tests only in voxels the voxelisation found partly covered. */
+static bool sample_valid(void *user, lu_vec3 p) {
+    valid_ctx *v = user;
+    if (!(medium_density(v->m, p) > 0.0f)) return false;
+    const vgrid *g = v->g;
+    int c[3];
+    float pv[3] = {p.x - g->lo.x, p.y - g->lo.y, p.z - g->lo.z};
+    for (int a = 0; a < 3; a++) {
+        c[a] = (int)(pv[a] / g->h);
+        c[a] = c[a] < 0 ? 0 : (c[a] >= g->n[a] ? g->n[a] - 1 : c[a]);
+    }
+    size_t i = vidx(g, c[0], c[1], c[2]);
+    /* Sub-samples can all be inside while the boundary clips a corner:
+     * trust the grid only where the whole 3x3x3 neighbourhood is inside. */
+    bool surely = true;
+    for (int dz = -1; dz <= 1 && surely; dz++)
+        for (int dy = -1; dy <= 1 && surely; dy++)
+            for (int dx = -1; dx <= 1 && surely; dx++) {
+                int x = c[0] + dx, y = c[1] + dy, z = c[2] + dz;
+                surely = x >= 0 && y >= 0 && z >= 0 && x < g->n[0] && y < g->n[1] && z < g->n[2] &&
+                         g->inside[vidx(g, x, y, z)] >= 1.0f;
+            }
+    if (!surely && !lu_accel_inside(v->boundary, p)) return false;
+    return !(v->opaque && g->blocked[i] > 0.0f && lu_accel_inside(v->opaque, p));
+}
+
+typedef struct sh_job {
+    const lu_vec3 *dirs;
+    int ndirs, bands, channels, stride, count;
+    lu_vec3 sigma_t;
+    const float *tau, *ft;
+    float *sh;
+} sh_job;
+
+static void sh_samples(void *ctx, int64_t begin, int64_t end, int thread) {
+    sh_job *j = ctx;
+    float *f = malloc((size_t)j->ndirs * sizeof *f);
+    if (!f) return;
+    int nc = j->bands * j->bands;
+    for (int64_t i = begin; i < end; i++) {
+        const float *tau = j->tau + (size_t)i * j->ndirs, *ft = j->ft + (size_t)i * j->ndirs;
+        for (int set = 0; set < 2; set++)
+            for (int c = 0; c < j->channels; c++) {
+                float st = j->channels == 1 ? lu_v3_avg(j->sigma_t) : lu_v3_get(j->sigma_t, c);
+                for (int d = 0; d < j->ndirs; d++) {
+                    float e = isinf(tau[d]) ? 0.0f : expf(-st * tau[d]);
+                    f[d] = set == 0 ? e : e * ft[d];
+                }
+                lu_ddod_sh_project(j->ndirs, j->dirs, f, j->bands, j->sh + (size_t)i * j->stride + (size_t)(set * j->channels + c) * nc);
+            }
+    }
+    free(f);
+}
+
+static int cmp_float(const void *a, const void *b) {
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+static bool grey(lu_vec3 v) { return v.x == v.y && v.y == v.z; }
+
+/* Samples of medium m (target n_target) appended to out. */
+static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *opaque, const lu_ddod_params *p,
+                                const lu_vec3 *dirs, int n_target, lu_ddod_set *out, lu_error *err) {
+    const lu_medium *m = &scene->media[mi];
+    lu_accel *boundary = NULL;
+    lu_result r = lu_mesh_accel_build(&m->boundary, &boundary, err);
+    vgrid g;
+    memset(&g, 0, sizeof g);
+    float *T = NULL, *radius = NULL, *pts = NULL, *rad = NULL, *tau = NULL, *ft = NULL;
+    psi_job pj;
+    memset(&pj, 0, sizeof pj);
+    int threads = lu_thread_count();
+    lu_vec3 sigma_t = lu_v3_add(m->sigma_a, m->sigma_s);
+
+    /* 1 + 2: optical depth sweeps and the first moment */
+    double t0 = lu_time_seconds(), c0 = cpu_seconds();
+    if (r == LU_OK) r = vgrid_build(&g, m, boundary, opaque, p->res, err);
+    if (r == LU_OK && !(T = calloc(g.count * 3, sizeof *T))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    if (r == LU_OK) r = first_moment(&g, dirs, p->dirs, lu_v3_avg(sigma_t), T, err);
+    double t1 = lu_time_seconds(), c1 = cpu_seconds();
+
+    /* divergence -> local radius */
+    int cnt = 0;
+    double volume = 0.0;
+    if (r == LU_OK && !(radius = calloc(g.count, sizeof *radius))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    float *inv = NULL;
+    if (r == LU_OK && !(inv = malloc(g.count * sizeof *inv))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    if (r == LU_OK) {
+        float h2 = 2.0f * g.h;
+        for (int z = 0; z < g.n[2]; z++)
+            for (int y = 0; y < g.n[1]; y++)
+                for (int x = 0; x < g.n[0]; x++) {
+                    size_t v = vidx(&g, x, y, z);
+                    bool ok = g.inside[v] > 0.0f && g.density[v] > 0.0f && !(g.blocked && g.blocked[v] >= 1.0f);
+                    inv[v] = -1.0f;
+                    if (!ok) continue;
+                    volume += (double)g.inside[v] * g.h * g.h * g.h;
+                    /* central differences (one-sided at the grid's edge) */
+                    float div = 0.0f;
+                    int c3[3] = {x, y, z};
+                    for (int a = 0; a < 3; a++) {
+                        int lo[3] = {x, y, z}, hi[3] = {x, y, z};
+                        lo[a] = c3[a] > 0 ? c3[a] - 1 : c3[a];
+                        hi[a] = c3[a] < g.n[a] - 1 ? c3[a] + 1 : c3[a];
+                        float span = (float)(hi[a] - lo[a]) * g.h;
+                        div += (T[3 * vidx(&g, hi[0], hi[1], hi[2]) + a] - T[3 * vidx(&g, lo[0], lo[1], lo[2]) + a]) /
+                               (span > 0.0f ? span : h2);
+                    }
+                    float rho = fabsf(div);
+                    inv[v] = 1.0f / fmaxf(rho, 1e-12f);
+                    cnt++;
+                }
+    }
+    double t2 = lu_time_seconds(), c2 = cpu_seconds();
+    if (r == LU_OK && cnt == 0) r = lu_fail(err, LU_ERR_INVALID_ARG, "ddod: medium %d has no density inside its boundary", mi);
+
+    /* 3: 1/rho mapped linearly into [r/2, 2r] between its 2nd and 98th
+     * percentiles (a few voxels at corners and in empty pockets would
+     * otherwise squash the map), then one common scale for the count. */
+    int count = 0;
+    if (r == LU_OK) {
+        float *sorted = malloc((size_t)cnt * sizeof *sorted);
+        if (!sorted) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+        if (r == LU_OK) {
+            int k = 0;
+            for (size_t v = 0; v < g.count; v++)
+                if (inv[v] >= 0.0f) sorted[k++] = inv[v];
+            qsort(sorted, (size_t)cnt, sizeof *sorted, cmp_float);
+            float lo = sorted[(int)(0.02 * (cnt - 1))], hi = sorted[(int)(0.98 * (cnt - 1))];
+            free(sorted);
+            float base = (float)cbrt(volume / (2.0 * n_target));
+            for (size_t v = 0; v < g.count; v++) {
+                if (inv[v] < 0.0f) continue;
+                float t = hi > lo ? (fminf(fmaxf(inv[v], lo), hi) - lo) / (hi - lo) : 0.5f;
+                radius[v] = base * (0.5f + 1.5f * t);
+            }
+            lu_ddod_field f = {{g.n[0], g.n[1], g.n[2]}, g.lo, g.h, radius};
+            valid_ctx vc = {m, boundary, opaque, &g};
+            pds_valid pv = {sample_valid, &vc};
+            /* Dart throwing with 8 candidates per target point lands about
+             * 1.8 N_s points at scale 1 (measured), hence cbrt(1.8) to start. */
+            float scale = 1.21f;
+            int candidates = 8 * n_target;
+            for (int it = 0; it < 8 && r == LU_OK; it++) {
+                free(pts);
+                free(rad);
+                r = poisson_impl(&f, scale, candidates, p->seed + (uint32_t)mi * 7919u, &pv, &pts, &rad, &count, err);
+                if (r != LU_OK || count == 0) break;
+                double ratio = (double)count / n_target;
+                if (getenv("LUCENT_DDOD_DEBUG")) fprintf(stderr, "ddod: sampling pass %d: scale %.4f, %d samples\n", it, scale, count);
+                if (fabs(ratio - 1.0) <= 0.05) break;
+                scale *= (float)cbrt(ratio);
+            }
+            if (r == LU_OK && count == 0) r = lu_fail(err, LU_ERR_INVALID_ARG, "ddod: medium %d: no sample fits", mi);
+        }
+    }
+    free(inv);
+    double t3 = lu_time_seconds(), c3 = cpu_seconds();
+
+    /* 4: attenuation per sample and direction, then SH */
+    if (r == LU_OK) {
+        tau = malloc((size_t)count * p->dirs * sizeof *tau);
+        ft = malloc((size_t)count * p->dirs * sizeof *ft);
+        pj.vol = calloc((size_t)threads, sizeof *pj.vol);
+        pj.scratch = calloc((size_t)threads * 2, sizeof *pj.scratch);
+        if (!tau || !ft || !pj.vol || !pj.scratch) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+        bool grid = m->kind == LU_DENSITY_GRID;
+        for (int t = 0; grid && r == LU_OK && t < threads; t++) {
+            pj.vol[t] = malloc(g.count * sizeof(float));
+            pj.scratch[2 * t] = malloc(max_slice(&g) * sizeof(float));
+            pj.scratch[2 * t + 1] = malloc(max_slice(&g) * sizeof(float));
+            if (!pj.vol[t] || !pj.scratch[2 * t] || !pj.scratch[2 * t + 1])
+                r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for per-thread sweeps");
+        }
+    }
+    if (r == LU_OK) {
+        pj.g = &g;
+        pj.m = m;
+        pj.boundary = boundary;
+        pj.opaque = opaque;
+        pj.dirs = dirs;
+        pj.ndirs = p->dirs;
+        pj.pts = pts;
+        pj.count = count;
+        pj.tau = tau;
+        pj.ft = ft;
+        atomic_init(&pj.failed, 0);
+        lu_parallel_for(p->dirs, 1, psi_dirs, &pj, "ddod: sample optical depth");
+        if (atomic_load(&pj.failed)) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory in ray queries");
+    }
+    double t4 = lu_time_seconds(), fit_s = 0.0, c4 = cpu_seconds(), fit_c = 0.0;
+    if (r == LU_OK) {
+        int base = out->count;
+        size_t total = (size_t)base + count;
+        float *ns = realloc(out->samples, total * LU_K_DDOD_SAMPLE_FLOATS * sizeof *ns);
+        if (ns) out->samples = ns;
+        float *nh = ns ? realloc(out->sh, total * out->stride * sizeof *nh) : NULL;
+        if (nh) out->sh = nh;
+        if (!ns || !nh) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %zu samples", total);
+        if (r == LU_OK) {
+            /* Amplitudes: each sample stands for a share of the volume
+             * proportional to its radius cubed. */
+            double sum_r3 = 0.0;
+            for (int i = 0; i < count; i++) sum_r3 += (double)rad[i] * rad[i] * rad[i];
+            for (int i = 0; i < count; i++) {
+                float *s = out->samples + (size_t)(base + i) * LU_K_DDOD_SAMPLE_FLOATS;
+                lu_vec3 b = lu_v3(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]);
+                float sd = p->width * rad[i];
+                double vol_i = volume * (double)rad[i] * rad[i] * rad[i] / sum_r3;
+                s[LU_K_DDOD_SAMPLE_X] = b.x;
+                s[LU_K_DDOD_SAMPLE_X + 1] = b.y;
+                s[LU_K_DDOD_SAMPLE_X + 2] = b.z;
+                s[LU_K_DDOD_SAMPLE_S] = sd;
+                s[LU_K_DDOD_SAMPLE_DENSITY] = medium_density(m, b);
+                s[LU_K_DDOD_SAMPLE_AMP] = (float)(vol_i / (pow(2.0 * M_PI, 1.5) * (double)sd * sd * sd));
+                s[LU_K_DDOD_SAMPLE_MEDIUM] = (float)mi;
+                s[7] = 0.0f;
+            }
+            double tf = lu_time_seconds(), cf = cpu_seconds();
+            r = fit_partition(out->samples + (size_t)base * LU_K_DDOD_SAMPLE_FLOATS, count, p->fit, err);
+            fit_s = lu_time_seconds() - tf;
+            fit_c = cpu_seconds() - cf;
+            out->timing.sampling_s += fit_s;
+            sh_job sj = {dirs, p->dirs, out->bands, out->channels, out->stride, count, sigma_t, tau, ft,
+                         out->sh + (size_t)base * out->stride};
+            if (r == LU_OK) lu_parallel_for(count, 0, sh_samples, &sj, NULL);
+            out->count = (int)total;
+        }
+    }
+    double t5 = lu_time_seconds() - fit_s, c5 = cpu_seconds() - fit_c;
+    if (getenv("LUCENT_DDOD_DEBUG"))
+        fprintf(stderr,
+                "ddod: medium %d processor s: moment sweeps %.2f, divergence %.2f, sampling %.2f, sample attenuation "
+                "%.2f, fit %.2f, SH %.2f\n",
+                mi, c1 - c0, c2 - c1, c3 - c2, c4 - c3, fit_c, c5 - c4);
+    out->timing.optical_depth_s += (t1 - t0) + (t4 - t3);
+    out->timing.divergence_s += t2 - t1;
+    out->timing.sampling_s += t3 - t2;
+    out->timing.sh_s += t5 - t4;
+
+    for (int t = 0; pj.vol && t < threads; t++) free(pj.vol[t]);
+    for (int t = 0; pj.scratch && t < 2 * threads; t++) free(pj.scratch[t]);
+    free(pj.vol);
+    free(pj.scratch);
+    free(tau);
+    free(ft);
+    free(pts);
+    free(rad);
+    free(radius);
+    free(T);
+    vgrid_free(&g);
+    if (boundary) lu_accel_destroy(boundary);
+    return r;
+}
+
+lu_result lu_ddod_compute(const lu_scene *scene, const lu_ddod_params *p, lu_ddod_set *out, lu_error *err) {
+    memset(out, 0, sizeof *out);
+    if (scene->medium_count == 0) return lu_fail(err, LU_ERR_INVALID_ARG, "ddod: the scene has no medium");
+    bool all_grey = true;
+    double total_volume = 0.0;
+    for (int m = 0; m < scene->medium_count; m++) {
+        const lu_medium *med = &scene->media[m];
+        if (!med->has_boundary)
+            return lu_fail(err, LU_ERR_UNSUPPORTED,
+                           "ddod: medium %d has no boundary mesh (ddod renders translucent objects: media inside a "
+                           "closed mesh)",
+                           m);
+        all_grey = all_grey && grey(lu_v3_add(med->sigma_a, med->sigma_s));
+        lu_aabb b = lu_mesh_bounds(&med->boundary);
+        lu_vec3 e = lu_v3_sub(b.hi, b.lo);
+        total_volume += (double)e.x * e.y * e.z;
+    }
+    out->bands = p->bands;
+    out->channels = all_grey ? 1 : 3;
+    out->stride = 2 * out->channels * p->bands * p->bands;
+    double t0 = lu_time_seconds(), c0 = cpu_seconds();
+    lu_vec3 *dirs = malloc((size_t)p->dirs * sizeof *dirs);
+    if (!dirs) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    lu_ddod_directions(p->dirs, dirs);
+    /* Opaque objects block: they join the optical depth as infinite. */
+    lu_accel *opaque = NULL;
+    int *object_of = NULL;
+    lu_result r = lu_opaque_accel_build(scene, &opaque, &object_of, err);
+    free(object_of);
+    for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
+        lu_aabb b = lu_mesh_bounds(&scene->media[m].boundary);
+        lu_vec3 e = lu_v3_sub(b.hi, b.lo);
+        int target = (int)lround(p->samples * ((double)e.x * e.y * e.z / total_volume));
+        r = compute_medium(scene, m, opaque, p, dirs, target > 16 ? target : 16, out, err);
+    }
+    if (opaque) lu_accel_destroy(opaque);
+    free(dirs);
+    out->timing.total_s = lu_time_seconds() - t0;
+    out->timing.cpu_s = cpu_seconds() - c0;
+    if (r != LU_OK) lu_ddod_set_free(out);
+    return r;
+}
+
+void lu_ddod_set_free(lu_ddod_set *s) {
+    free(s->samples);
+    free(s->sh);
+    memset(s, 0, sizeof *s);
+}
+
+/* ---- cache ------------------------------------------------------------------ */
+
+const char *lu_ddod_cache_dir(void) {
+    const char *d = getenv("LUCENT_CACHE_DIR");
+    return d && *d ? d : "out/cache";
+}
+
+typedef struct fnv {
+    uint64_t h;
+} fnv;
+static void fnv_bytes(fnv *f, const void *data, size_t n) {
+    const unsigned char *p = data;
+    for (size_t i = 0; i < n; i++) {
+        f->h ^= p[i];
+        f->h *= 0x100000001b3ull;
+    }
+}
+static void fnv_mesh(fnv *f, const lu_mesh *m) {
+    fnv_bytes(f, &m->vertex_count, sizeof m->vertex_count);
+    fnv_bytes(f, &m->triangle_count, sizeof m->triangle_count);
+    fnv_bytes(f, m->positions, (size_t)m->vertex_count * sizeof *m->positions);
+    fnv_bytes(f, m->indices, (size_t)m->triangle_count * 3 * sizeof *m->indices);
+}
+
+uint64_t lu_ddod_key(const lu_scene *scene, const lu_ddod_params *p) {
+    fnv f = {0xcbf29ce484222325ull};
+    int v = DDOD_CACHE_VERSION;
+    fnv_bytes(&f, &v, sizeof v);
+    fnv_bytes(&f, p, sizeof *p);
+    for (int i = 0; i < scene->medium_count; i++) {
+        const lu_medium *m = &scene->media[i];
+        fnv_bytes(&f, &m->kind, sizeof m->kind);
+        fnv_bytes(&f, &m->constant, sizeof m->constant);
+        fnv_bytes(&f, &m->sigma_a, sizeof m->sigma_a);
+        fnv_bytes(&f, &m->sigma_s, sizeof m->sigma_s);
+        fnv_bytes(&f, &m->eta, sizeof m->eta);
+        fnv_bytes(&f, &m->world_to_index, sizeof m->world_to_index);
+        if (m->kind == LU_DENSITY_GRID) {
+            fnv_bytes(&f, &m->grid.nx, 3 * sizeof(int));
+            fnv_bytes(&f, m->grid.data, (size_t)m->grid.nx * m->grid.ny * m->grid.nz * sizeof(float));
+        }
+        if (m->has_boundary) fnv_mesh(&f, &m->boundary);
+    }
+    for (int i = 0; i < scene->object_count; i++)
+        if (scene->objects[i].material.type == LU_MATERIAL_DIFFUSE) fnv_mesh(&f, &scene->objects[i].mesh);
+    return f.h;
+}
+
+static const char k_magic[8] = {'L', 'U', 'D', 'D', 'O', 'D', 'C', '\n'};
+
+typedef struct cache_header {
+    char magic[8];
+    uint32_t version, sample_floats;
+    uint64_t key;
+    int32_t count, bands, channels, stride;
+    double timing[6];
+} cache_header;
+
+static uint64_t payload_checksum(const lu_ddod_set *s) {
+    fnv f = {0xcbf29ce484222325ull};
+    fnv_bytes(&f, s->samples, (size_t)s->count * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float));
+    fnv_bytes(&f, s->sh, (size_t)s->count * s->stride * sizeof(float));
+    return f.h;
+}
+
+lu_result lu_ddod_cache_save(const char *path, uint64_t key, const lu_ddod_set *s, lu_error *err) {
+    cache_header h;
+    memset(&h, 0, sizeof h);
+    memcpy(h.magic, k_magic, sizeof k_magic);
+    h.version = DDOD_CACHE_VERSION;
+    h.sample_floats = LU_K_DDOD_SAMPLE_FLOATS;
+    h.key = key;
+    h.count = s->count;
+    h.bands = s->bands;
+    h.channels = s->channels;
+    h.stride = s->stride;
+    h.timing[0] = s->timing.optical_depth_s;
+    h.timing[1] = s->timing.divergence_s;
+    h.timing[2] = s->timing.sampling_s;
+    h.timing[3] = s->timing.sh_s;
+    h.timing[4] = s->timing.total_s;
+    h.timing[5] = s->timing.cpu_s;
+    uint64_t sum = payload_checksum(s);
+    lu_atomic_file af;
+    lu_result r = lu_atomic_open(&af, path, err);
+    if (r != LU_OK) return r;
+    FILE *fp = af.fp;
+    bool ok = fwrite(&h, sizeof h, 1, fp) == 1 &&
+              fwrite(s->samples, sizeof(float), (size_t)s->count * LU_K_DDOD_SAMPLE_FLOATS, fp) ==
+                  (size_t)s->count * LU_K_DDOD_SAMPLE_FLOATS &&
+              fwrite(s->sh, sizeof(float), (size_t)s->count * s->stride, fp) == (size_t)s->count * s->stride &&
+              fwrite(&sum, sizeof sum, 1, fp) == 1;
+    if (!ok) {
+        lu_atomic_abort(&af);
+        return lu_fail(err, LU_ERR_IO, "%s: write failed: %s", path, strerror(errno));
+    }
+    return lu_atomic_commit(&af, err);
+}
+
+lu_result lu_ddod_cache_load(const char *path, uint64_t key, lu_ddod_set *s, lu_error *err) {
+    memset(s, 0, sizeof *s);
+    FILE *fp;
+    uint64_t size;
+    lu_result r = lu_open_regular(path, (void **)&fp, &size, err);
+    if (r != LU_OK) return r;
+    cache_header h;
+    const char *why = NULL;
+    char buf[160];
+    if (size < sizeof h || fread(&h, sizeof h, 1, fp) != 1) {
+        why = "truncated header";
+    } else if (memcmp(h.magic, k_magic, sizeof k_magic) != 0) {
+        why = "not a ddod cache file (bad magic)";
+    } else if (h.version != DDOD_CACHE_VERSION) {
+        snprintf(buf, sizeof buf, "cache version %u, this build reads %d", h.version, DDOD_CACHE_VERSION);
+        why = buf;
+    } else if (h.key != key) {
+        why = "made for other inputs (key mismatch)";
+    } else if (h.sample_floats != LU_K_DDOD_SAMPLE_FLOATS || h.count <= 0 || h.count > 100000000 || h.bands < 1 ||
+               h.bands > LU_SH_MAX_BANDS || (h.channels != 1 && h.channels != 3) ||
+               h.stride != 2 * h.channels * h.bands * h.bands) {
+        why = "inconsistent header fields";
+    } else {
+        uint64_t want = sizeof h + ((uint64_t)h.count * (LU_K_DDOD_SAMPLE_FLOATS + (uint64_t)h.stride)) * 4u + 8u;
+        if (size != want) {
+            snprintf(buf, sizeof buf, "%s: %llu bytes, expected %llu", size < want ? "truncated" : "trailing bytes",
+                     (unsigned long long)size, (unsigned long long)want);
+            why = buf;
+        }
+    }
+    if (!why) {
+        s->count = h.count;
+        s->bands = h.bands;
+        s->channels = h.channels;
+        s->stride = h.stride;
+        s->samples = malloc((size_t)h.count * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float));
+        s->sh = malloc((size_t)h.count * h.stride * sizeof(float));
+        uint64_t sum = 0;
+        if (!s->samples || !s->sh) {
+            fclose(fp);
+            lu_ddod_set_free(s);
+            return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", path);
+        }
+        if (fread(s->samples, sizeof(float), (size_t)h.count * LU_K_DDOD_SAMPLE_FLOATS, fp) !=
+                (size_t)h.count * LU_K_DDOD_SAMPLE_FLOATS ||
+            fread(s->sh, sizeof(float), (size_t)h.count * h.stride, fp) != (size_t)h.count * h.stride ||
+            fread(&sum, sizeof sum, 1, fp) != 1)
+            why = "read failed";
+        else if (sum != payload_checksum(s))
+            why = "checksum mismatch (the file is corrupt)";
+    }
+    fclose(fp);
+    if (why) {
+        lu_ddod_set_free(s);
+        return lu_fail(err, LU_ERR_FORMAT, "%s: %s; delete the file to recompute", path, why);
+    }
+    s->timing.optical_depth_s = h.timing[0];
+    s->timing.divergence_s = h.timing[1];
+    s->timing.sampling_s = h.timing[2];
+    s->timing.sh_s = h.timing[3];
+    s->timing.total_s = h.timing[4];
+    s->timing.cpu_s = h.timing[5];
+    s->timing.from_cache = true;
+    return LU_OK;
+}
+
+static lu_result mkdirs(const char *dir, lu_error *err) {
+    char tmp[1024];
+    snprintf(tmp, sizeof tmp, "%s", dir);
+    for (char *p = tmp + 1; *p; p++) {
+        if (*p != '/') continue;
+        *p = '\0';
+        if (mkdir(tmp, 0777) != 0 && errno != EEXIST)
+            return lu_fail(err, LU_ERR_IO, "%s: cannot create the cache folder: %s", tmp, strerror(errno));
+        *p = '/';
+    }
+    if (mkdir(tmp, 0777) != 0 && errno != EEXIST)
+        return lu_fail(err, LU_ERR_IO, "%s: cannot create the cache folder: %s", tmp, strerror(errno));
+    return LU_OK;
+}
+
+lu_result lu_ddod_prepare_set(const lu_scene *scene, const lu_ddod_params *p, bool use_cache, lu_ddod_set *out,
+                              lu_error *err) {
+    if (!use_cache) return lu_ddod_compute(scene, p, out, err);
+    uint64_t key = lu_ddod_key(scene, p);
+    char path[1100];
+    snprintf(path, sizeof path, "%s/ddod-%016llx.bin", lu_ddod_cache_dir(), (unsigned long long)key);
+    struct stat stt;
+    if (stat(path, &stt) == 0) return lu_ddod_cache_load(path, key, out, err);
+    lu_result r = lu_ddod_compute(scene, p, out, err);
+    if (r != LU_OK) return r;
+    r = mkdirs(lu_ddod_cache_dir(), err);
+    if (r == LU_OK) r = lu_ddod_cache_save(path, key, out, err);
+    if (r != LU_OK) lu_ddod_set_free(out);
+    return r;
+}

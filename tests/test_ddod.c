@@ -1,0 +1,424 @@
+/* ddod: SH projection of known functions (closed forms and independent
+ * quadrature), the Gaussian line integral against quadrature, Poisson-disk
+ * radii and count, the precomputed attenuation of a homogeneous sphere
+ * against its analytic chord, the cache round trip and its errors, and
+ * images against `reference` (and GPU against CPU). */
+#include <lucent/lucent.h>
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "lu_test.h"
+#include "methods/ddod.h"
+#include "methods/methods.h"
+#include "kernels/lu_medium.h"
+
+/* No context is needed for the pure functions of the kernel. */
+struct lu_k_ctx {
+    const float *sh;
+};
+static inline float lu_k_ddod_coeff(const struct lu_k_ctx *c, int index) { return c->sh[index]; }
+static inline float lu_k_ddod_sample_f(const struct lu_k_ctx *c, int i, int k) { return 0.0f; }
+static inline lu_vec3 lu_k_ddod_radiance(const struct lu_k_ctx *c, int i) { return lu_v3s(0.0f); }
+static inline float lu_k_ddod_pixel_f(const struct lu_k_ctx *c, int pixel, int k) { return 0.0f; }
+static inline int lu_k_ddod_tile_start(const struct lu_k_ctx *c, int tile) { return 0; }
+static inline int lu_k_ddod_tile_item(const struct lu_k_ctx *c, int k) { return 0; }
+static inline lu_vec3 lu_k_ddod_env_coeff(const struct lu_k_ctx *c, int k) { return lu_v3s(0.0f); }
+static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) {
+    lu_k_medium k;
+    memset(&k, 0, sizeof k);
+    return k;
+}
+static inline int lu_k_light_count(const struct lu_k_ctx *c) { return 0; }
+static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) {
+    lu_k_light k;
+    memset(&k, 0, sizeof k);
+    return k;
+}
+#include "kernels/lu_ddod.h"
+
+static double legendre_p(int l, double x) {
+    double p0 = 1.0, p1 = x;
+    if (l == 0) return 1.0;
+    for (int k = 2; k <= l; k++) {
+        double p2 = ((2 * k - 1) * x * p1 - (k - 1) * p0) / k;
+        p0 = p1;
+        p1 = p2;
+    }
+    return p1;
+}
+
+/* Zonal coefficients c_l = 2 pi K_l int_{-1}^{1} f(mu) P_l(mu) dmu of a
+ * function of cos(theta) about z, by 400-node Gauss-Legendre. */
+static void zonal_coeffs(double (*f)(double, double), double param, int bands, double *c) {
+    enum { N = 400 };
+    static double x[N], w[N];
+    static bool ready = false;
+    if (!ready) lu_test_gauss_legendre(N, x, w), ready = true;
+    for (int l = 0; l < bands; l++) {
+        double s = 0.0;
+        for (int i = 0; i < N; i++) s += w[i] * f(x[i], param) * legendre_p(l, x[i]);
+        c[l] = 2.0 * M_PI * sqrt((2 * l + 1) / (4.0 * M_PI)) * s;
+    }
+}
+
+static double f_lobe(double mu, double k) { return exp(-k * (1.0 - mu)); }  /* exp(-tau) lobe about z */
+
+static void test_sh_projection(void) {
+    enum { N = 2048 };
+    lu_vec3 *dirs = malloc(N * sizeof *dirs);
+    float *f = malloc(N * sizeof *f);
+    lu_ddod_directions(N, dirs);
+    float c[LU_SH_MAX_COEFFS];
+    /* constant: only Y_00 = 1 / (2 sqrt(pi)), exactly (the Fibonacci set's
+     * z values are symmetric, so odd bands vanish to rounding) */
+    for (int j = 0; j < N; j++) f[j] = 0.7f;
+    lu_ddod_sh_project(N, dirs, f, 6, c);
+    CHECK_NEAR(c[0], 0.7 * 2.0 * sqrt(M_PI), 1e-5);
+    double worst = 0.0;
+    for (int k = 1; k < 36; k++) worst = fmax(worst, fabs(c[k]));
+    CHECK_MSG(worst < 2e-3, "constant leaks %.3g into higher bands", worst);
+    /* clamped cosine lobe: c_l0 = K_l A_l (Ramamoorthi-Hanrahan A_l, lu_sh.h) */
+    for (int j = 0; j < N; j++) f[j] = fmaxf(dirs[j].z, 0.0f);
+    lu_ddod_sh_project(N, dirs, f, 6, c);
+    for (int l = 0; l < 6; l++) {
+        double want = sqrt((2 * l + 1) / (4.0 * M_PI)) * lu_k_sh_lambert_band(l);
+        CHECK_NEAR(c[l * (l + 1)], want, 3e-3);
+    }
+    /* narrow exp(-tau) lobes: the projected coefficients match independent
+     * quadrature, and the reconstruction's L2 error over the sphere is the
+     * truncation bound sqrt(int f^2 - sum c_l^2) of its order (Parseval). */
+    double ks[2] = {2.0, 8.0};
+    for (int t = 0; t < 2; t++) {
+        double k = ks[t], zc[6];
+        zonal_coeffs(f_lobe, k, 6, zc);
+        for (int j = 0; j < N; j++) f[j] = (float)f_lobe(dirs[j].z, k);
+        lu_ddod_sh_project(N, dirs, f, 6, c);
+        for (int l = 0; l < 6; l++) CHECK_NEAR(c[l * (l + 1)], zc[l], 2e-3 * (1.0 + fabs(zc[0])));
+        double f2 = (1.0 - exp(-4.0 * k)) * 2.0 * M_PI / (2.0 * k); /* int exp(-2k(1-mu)) */
+        for (int bands = 3; bands <= 6; bands++) {
+            double bound = f2;
+            for (int l = 0; l < bands; l++) bound -= zc[l] * zc[l];
+            bound = sqrt(fmax(bound, 0.0));
+            double e2 = 0.0;
+            struct lu_k_ctx ctx = {c};
+            lu_ddod_sh_project(N, dirs, f, bands, c);
+            for (int j = 0; j < N; j++) {
+                double d = lu_k_ddod_sh_dot(&ctx, 0, bands, dirs[j]) - f[j];
+                e2 += d * d * 4.0 * M_PI / N;
+            }
+            fprintf(stderr, "  exp(-%g(1-cos)) lobe, %d bands: L2 error %.4f, truncation bound %.4f\n", k, bands,
+                    sqrt(e2), bound);
+            CHECK(sqrt(e2) <= 1.02 * bound + 1e-3);
+        }
+    }
+    /* the kernel's erf (A&S 7.1.26, 1.5e-7, plus float rounding) against libm */
+    for (double x = -3.0; x <= 3.0; x += 0.25) CHECK_NEAR(lu_k_erf((float)x), erf(x), 5e-7);
+    free(dirs);
+    free(f);
+}
+
+/* The 8-band extension of lu_sh.h (64 coefficients) is orthonormal:
+ * Gauss-Legendre in cos(theta) (16 nodes, exact to degree 31) times a
+ * uniform phi rule (32 nodes, exact to trigonometric degree 31). */
+static void test_sh_orthonormal_8(void) {
+    enum { NT = 16, NP = 32, NC = 64 };
+    double gx[NT], gw[NT];
+    lu_test_gauss_legendre(NT, gx, gw);
+    static double gram[NC][NC];
+    float y[LU_SH_MAX_COEFFS];
+    for (int i = 0; i < NT; i++)
+        for (int k = 0; k < NP; k++) {
+            double st = sqrt(1.0 - gx[i] * gx[i]), ph = 2.0 * M_PI * (k + 0.5) / NP;
+            lu_k_sh_eval(lu_v3((float)(st * cos(ph)), (float)(st * sin(ph)), (float)gx[i]), 8, y);
+            for (int a = 0; a < NC; a++)
+                for (int b = a; b < NC; b++) gram[a][b] += gw[i] * (2.0 * M_PI / NP) * y[a] * y[b];
+        }
+    double worst = 0.0;
+    for (int a = 0; a < NC; a++)
+        for (int b = a; b < NC; b++) worst = fmax(worst, fabs(gram[a][b] - (a == b ? 1.0 : 0.0)));
+    fprintf(stderr, "  SH (8 bands) Gram matrix max deviation from identity: %.2g\n", worst);
+    CHECK(worst < 2e-5);
+}
+
+static void test_gauss_line(void) {
+    lu_vec3 b = lu_v3(0.3f, -0.2f, 0.5f);
+    float s = 0.17f;
+    for (int t = 0; t < 20; t++) {
+        lu_vec3 o = lu_v3(-1.0f + 0.1f * t, 0.05f * t - 0.4f, -2.0f);
+        lu_vec3 d = lu_v3_norm(lu_v3(0.1f * (t % 5) - 0.2f, 0.03f * t - 0.3f, 1.0f));
+        float t0 = 1.0f + 0.05f * t, t1 = 3.5f - 0.07f * t;
+        /* 20000-point midpoint rule of the Gaussian along the segment */
+        double q = 0.0;
+        int n = 20000;
+        for (int i = 0; i < n; i++) {
+            double tt = t0 + (t1 - t0) * (i + 0.5) / n;
+            double x = o.x + tt * d.x - b.x, y = o.y + tt * d.y - b.y, z = o.z + tt * d.z - b.z;
+            q += exp(-(x * x + y * y + z * z) / (2.0 * s * s));
+        }
+        q *= (t1 - t0) / n;
+        CHECK_NEAR(lu_k_ddod_gauss_line(o, d, b, s, t0, t1), q, 1e-6 + 1e-5 * q);
+    }
+    CHECK(lu_k_ddod_gauss_line(lu_v3s(0.0f), lu_v3(0, 0, 1), b, s, 2.0f, 1.0f) == 0.0f);
+}
+
+static void test_poisson(void) {
+    /* radius grows along x from 0.03 to 0.12 over a 1 x 0.5 x 0.5 box */
+    int n[3] = {40, 20, 20};
+    float h = 0.025f;
+    size_t nv = (size_t)n[0] * n[1] * n[2];
+    float *rad = malloc(nv * sizeof *rad);
+    for (int z = 0; z < n[2]; z++)
+        for (int y = 0; y < n[1]; y++)
+            for (int x = 0; x < n[0]; x++) rad[((size_t)z * n[1] + y) * n[0] + x] = 0.03f + 0.09f * (x + 0.5f) / n[0];
+    lu_ddod_field f = {{n[0], n[1], n[2]}, lu_v3s(0.0f), h, rad};
+    float *pts, *r;
+    int count;
+    lu_error err;
+    CHECK_OK(lu_ddod_poisson(&f, 1.0f, 40000, 7, &pts, &r, &count, &err), &err);
+    int bad = 0;
+    for (int i = 0; i < count; i++)
+        for (int j = i + 1; j < count; j++) {
+            float dx = pts[3 * i] - pts[3 * j], dy = pts[3 * i + 1] - pts[3 * j + 1], dz = pts[3 * i + 2] - pts[3 * j + 2];
+            float m = fmaxf(r[i], r[j]);
+            bad += dx * dx + dy * dy + dz * dz < m * m;
+        }
+    CHECK_MSG(bad == 0, "%d pairs closer than their radius", bad);
+    /* every point's radius is its voxel's */
+    int wrong = 0, left = 0;
+    for (int i = 0; i < count; i++) {
+        int x = (int)(pts[3 * i] / h);
+        wrong += fabsf(r[i] - (0.03f + 0.09f * (x + 0.5f) / n[0])) > 1e-6f;
+        left += pts[3 * i] < 0.5f;
+    }
+    CHECK(wrong == 0);
+    /* denser where the radius is smaller */
+    CHECK_MSG(left > 2 * (count - left), "%d of %d points in the small-radius half", left, count);
+    free(pts);
+    free(r);
+    free(rad);
+}
+
+static const char *k_sphere =
+    "{\"camera\": {\"position\": [0, 0.6, 3.6], \"look_at\": [0, 0, 0], \"fov_y_deg\": 40, \"width\": 40, \"height\": 40},"
+    " \"lights\": [{\"type\": \"point\", \"position\": [2.5, 2.0, 2.0], \"intensity\": [60, 60, 60]},"
+    "              {\"type\": \"point\", \"position\": [-2.0, 1.0, -2.5], \"intensity\": [30, 30, 30]}],"
+    " \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": 1.6, \"sigma_a\": 0.1,"
+    "   \"boundary\": {\"mesh\": {\"procedural\": \"sphere\", \"radius\": 1.0, \"subdivisions\": 5}, \"eta\": 1.3}}]}";
+
+/* The chord from b to a unit sphere along w: -b.w + sqrt((b.w)^2 - |b|^2 + 1). */
+static double chord(lu_vec3 b, lu_vec3 w) {
+    double bw = lu_v3_dot(b, w), bb = lu_v3_dot(b, b);
+    return -bw + sqrt(bw * bw - bb + 1.0);
+}
+
+static void test_sphere_attenuation(void) {
+    lu_scene s;
+    lu_error err;
+    CHECK_OK(lu_scene_load_string(k_sphere, "sphere.json", &s, &err), &err);
+    lu_ddod_params p = {48, 512, 3000, 6, 0.6f, 1, 0};
+    lu_ddod_set set;
+    CHECK_OK(lu_ddod_compute(&s, &p, &set, &err), &err);
+    CHECK_MSG(abs(set.count - p.samples) <= p.samples / 10, "%d samples for a target of %d", set.count, p.samples);
+    CHECK(set.channels == 1 && set.stride == 2 * 36);
+    /* Every sample inside the sphere; psi from the SH against exp(-sigma_t
+     * chord) and psi^F against the same times F_t at the exit: RMS over
+     * samples and directions, deep samples (|b| < 0.6: smooth functions)
+     * and all. */
+    double e_deep = 0.0, e_all = 0.0, ef_deep = 0.0;
+    int n_deep = 0, n_all = 0, outside = 0;
+    struct lu_k_ctx ctx = {set.sh};
+    lu_vec3 dirs[64];
+    lu_ddod_directions(64, dirs);
+    for (int i = 0; i < set.count; i++) {
+        const float *sm = set.samples + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+        lu_vec3 b = lu_v3(sm[0], sm[1], sm[2]);
+        outside += lu_v3_len(b) > 1.0f;
+        bool deep = lu_v3_len(b) < 0.6f;
+        for (int j = 0; j < 64; j++) {
+            lu_vec3 w = lu_v3_norm(lu_v3(dirs[j].x + 0.1f, dirs[j].y, dirs[j].z - 0.05f));
+            double c = chord(b, w), want = exp(-1.7 * c);
+            lu_vec3 x = lu_v3_madd(b, w, (float)c);
+            double wantf = want * lu_k_fresnel_transmittance(lu_v3_dot(lu_v3_norm(x), w), 1.3f);
+            double got = lu_k_ddod_sh_dot(&ctx, i * set.stride, 6, w);
+            double gotf = lu_k_ddod_sh_dot(&ctx, i * set.stride + 36, 6, w);
+            e_all += (got - want) * (got - want);
+            n_all++;
+            if (deep) {
+                e_deep += (got - want) * (got - want);
+                ef_deep += (gotf - wantf) * (gotf - wantf);
+                n_deep++;
+            }
+        }
+    }
+    e_deep = sqrt(e_deep / n_deep);
+    ef_deep = sqrt(ef_deep / n_deep);
+    e_all = sqrt(e_all / n_all);
+    fprintf(stderr, "  sphere psi RMS error: deep %.4f (with Fresnel %.4f), all %.4f\n", e_deep, ef_deep, e_all);
+    CHECK(outside == 0);
+    CHECK(e_deep < 0.01);
+    CHECK(ef_deep < 0.01);
+    CHECK(e_all < 0.05);
+    lu_ddod_set_free(&set);
+    lu_scene_destroy(&s);
+}
+
+static void test_cache(void) {
+    lu_scene s;
+    lu_error err;
+    CHECK_OK(lu_scene_load_string(k_sphere, "sphere.json", &s, &err), &err);
+    lu_ddod_params p = {24, 32, 400, 3, 0.8f, 1, 2};
+    lu_ddod_set a, b;
+    CHECK_OK(lu_ddod_compute(&s, &p, &a, &err), &err);
+    char path[256];
+    snprintf(path, sizeof path, "%s/test_ddod_cache_%d.bin", LU_BINARY_DIR, (int)getpid());
+    uint64_t key = lu_ddod_key(&s, &p);
+    CHECK_OK(lu_ddod_cache_save(path, key, &a, &err), &err);
+    CHECK_OK(lu_ddod_cache_load(path, key, &b, &err), &err);
+    CHECK(b.count == a.count && b.stride == a.stride && b.timing.from_cache);
+    CHECK(b.count > 0 && memcmp(a.samples, b.samples, (size_t)a.count * LU_K_DDOD_SAMPLE_FLOATS * 4) == 0);
+    CHECK(b.count > 0 && memcmp(a.sh, b.sh, (size_t)a.count * a.stride * 4) == 0);
+    lu_ddod_set_free(&b);
+    /* other inputs: another key */
+    lu_ddod_params q = p;
+    q.dirs = 64;
+    CHECK(lu_ddod_key(&s, &q) != key);
+    CHECK(lu_ddod_cache_load(path, lu_ddod_key(&s, &q), &b, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "key mismatch") && strstr(err.message, path), "%s", err.message);
+    /* flipped payload byte: checksum */
+    FILE *fp = fopen(path, "r+b");
+    CHECK(fp != NULL);
+    if (fp) {
+        fseek(fp, 200, SEEK_SET);
+        int c = fgetc(fp);
+        fseek(fp, 200, SEEK_SET);
+        fputc(c ^ 0x55, fp);
+        fclose(fp);
+    }
+    CHECK(lu_ddod_cache_load(path, key, &b, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "checksum"), "%s", err.message);
+    /* truncated */
+    CHECK(truncate(path, 300) == 0);
+    CHECK(lu_ddod_cache_load(path, key, &b, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "truncated"), "%s", err.message);
+    /* not a cache file */
+    fp = fopen(path, "wb");
+    if (fp) {
+        fputs("{\"camera\": 1}\n", fp);
+        for (int i = 0; i < 100; i++) fputs("padding padding padding\n", fp);
+        fclose(fp);
+    }
+    CHECK(lu_ddod_cache_load(path, key, &b, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "magic"), "%s", err.message);
+    /* the renderer reports it and fails (no silent recompute over a corrupt file) */
+    char dir[256];
+    snprintf(dir, sizeof dir, "%s/test_ddod_cache_dir_%d", LU_BINARY_DIR, (int)getpid());
+    setenv("LUCENT_CACHE_DIR", dir, 1);
+    lu_kvlist set = {0};
+    CHECK_OK(lu_kv_parse_assignment(&set, "ddod.res=24", &err), &err);
+    CHECK_OK(lu_kv_parse_assignment(&set, "ddod.dirs=32", &err), &err);
+    CHECK_OK(lu_kv_parse_assignment(&set, "ddod.samples=400", &err), &err);
+    CHECK_OK(lu_kv_parse_assignment(&set, "ddod.bands=3", &err), &err);
+    lu_renderer *r1 = NULL, *r2 = NULL;
+    CHECK_OK(lu_renderer_create("ddod", &s, &set, LU_BACKEND_CPU, &r1, &err), &err);   /* computes, writes */
+    CHECK_OK(lu_renderer_create("ddod", &s, &set, LU_BACKEND_CPU, &r2, &err), &err);   /* loads */
+    lu_ddod_stats st1, st2;
+    CHECK(lu_ddod_last_stats(r1, &st1) && !st1.precompute.from_cache);
+    CHECK(lu_ddod_last_stats(r2, &st2) && st2.precompute.from_cache && st2.samples == st1.samples);
+    lu_renderer_destroy(r1);
+    lu_renderer_destroy(r2);
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "for f in %s/ddod-*.bin; do printf 'garbage' > \"$f\"; done", dir);
+    CHECK(system(cmd) == 0);
+    CHECK(lu_renderer_create("ddod", &s, &set, LU_BACKEND_CPU, &r1, &err) == LU_ERR_FORMAT);
+    CHECK_MSG(strstr(err.message, "delete the file"), "%s", err.message);
+    snprintf(cmd, sizeof cmd, "rm -rf %s %s", dir, path);
+    CHECK(system(cmd) == 0);
+    unsetenv("LUCENT_CACHE_DIR");
+    lu_kv_free(&set);
+    lu_ddod_set_free(&a);
+    lu_scene_destroy(&s);
+}
+
+static const char *k_layered =
+    "{\"camera\": {\"position\": [2.4, 1.5, 3.2], \"look_at\": [0, 0, 0], \"fov_y_deg\": 38, \"width\": 40, \"height\": 40},"
+    " \"lights\": [{\"type\": \"point\", \"position\": [-2.2, 2.5, 2.0], \"intensity\": [36, 34, 30]},"
+    "              {\"type\": \"directional\", \"direction\": [0.3, 0.4, -1.0], \"irradiance\": [0.6, 0.7, 0.9]}],"
+    " \"media\": [{\"density\": {\"procedural\": \"layered_cube\", \"size\": [2, 2, 2], \"resolution\": 32,"
+    "   \"layers\": 6, \"low\": 0.15, \"high\": 1.0, \"axis\": 1},"
+    "   \"sigma_s\": [2.2, 2.0, 1.8], \"sigma_a\": [0.1, 0.12, 0.15],"
+    "   \"boundary\": {\"mesh\": {\"procedural\": \"box\", \"size\": [1.8, 1.8, 1.8]}, \"eta\": 1.3}}]}";
+
+static double rel_l2(const lu_image *a, const lu_image *b) {
+    double num = 0.0, den = 0.0;
+    for (size_t i = 0; i < (size_t)a->width * a->height * 3; i++) {
+        num += (a->rgb[i] - b->rgb[i]) * (double)(a->rgb[i] - b->rgb[i]);
+        den += (double)b->rgb[i] * b->rgb[i];
+    }
+    return sqrt(num / den);
+}
+
+static bool render(const lu_scene *s, const char *method, lu_backend be, const char *const *sets, lu_image *img) {
+    lu_error err;
+    lu_kvlist kv = {0};
+    for (int i = 0; sets && sets[i]; i++) CHECK_OK(lu_kv_parse_assignment(&kv, sets[i], &err), &err);
+    lu_renderer *r = NULL;
+    lu_result res = lu_renderer_create(method, s, &kv, be, &r, &err);
+    lu_kv_free(&kv);
+    if (res != LU_OK) {
+        if (be == LU_BACKEND_GPU) {
+            fprintf(stderr, "  GPU unavailable, skipped: %s\n", err.message);
+            return false;
+        }
+        CHECK_OK(res, &err);
+        return false;
+    }
+    CHECK_OK(lu_renderer_render(r, s, img, &err), &err);
+    lu_renderer_destroy(r);
+    return true;
+}
+
+/* ddod against the truth at reduced settings (the defaults are measured in
+ * docs/ddod.md): small images, fewer samples, so the tolerance is wider
+ * than the 2 % target. */
+static void test_images(void) {
+    const char *scenes[2] = {k_sphere, k_layered};
+    /* measured 0.034 (sphere) and 0.145 (layered cube: the SH of the
+     * attenuation cannot follow its sharp fall-off near the cube's faces and
+     * edges; docs/ddod.md) at these settings */
+    const double tol[2] = {0.05, 0.17};
+    const char *sets[] = {"ddod.res=48", "ddod.dirs=128", "ddod.samples=15000", "ddod.cache=0", NULL};
+    for (int k = 0; k < 2; k++) {
+        lu_scene s;
+        lu_error err;
+        CHECK_OK(lu_scene_load_string(scenes[k], "scene.json", &s, &err), &err);
+        lu_image ref = {0}, cpu = {0}, gpu = {0};
+        if (render(&s, "reference", LU_BACKEND_CPU, NULL, &ref) && render(&s, "ddod", LU_BACKEND_CPU, sets, &cpu)) {
+            double e = rel_l2(&cpu, &ref);
+            fprintf(stderr, "  scene %d: ddod vs reference rel-L2 %.4f\n", k, e);
+            CHECK(e < tol[k]);
+            if (lu_method_find("ddod")->backends & LU_BACKEND_GPU && render(&s, "ddod", LU_BACKEND_GPU, sets, &gpu)) {
+                double g = rel_l2(&gpu, &cpu);
+                fprintf(stderr, "  scene %d: GPU vs CPU rel-L2 %.2g\n", k, g);
+                CHECK(g < 1e-3);
+            }
+        }
+        lu_image_destroy(&ref);
+        lu_image_destroy(&cpu);
+        lu_image_destroy(&gpu);
+        lu_scene_destroy(&s);
+    }
+}
+
+int main(void) {
+    RUN_TEST(test_sh_projection);
+    RUN_TEST(test_sh_orthonormal_8);
+    RUN_TEST(test_gauss_line);
+    RUN_TEST(test_poisson);
+    RUN_TEST(test_sphere_attenuation);
+    RUN_TEST(test_cache);
+    RUN_TEST(test_images);
+    TEST_EXIT();
+}
