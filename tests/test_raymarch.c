@@ -19,6 +19,7 @@
 
 #include <lucent/lucent.h>
 
+#include <math.h>
 #include <string.h>
 
 #define W 32
@@ -125,8 +126,64 @@ static void test_shadow_maps_converge(void) {
     }
 }
 
+/* A camera ray passing a point light at distance b << step inside a
+ * homogeneous medium (a box of constant density, eta 1: no Fresnel). The
+ * in-scattered radiance has a closed form up to one smooth integral: with
+ * t = tc + b tan(theta) the 1/d^2 peak becomes dtheta / b,
+ *   L = sigma_s I / (4 pi b) int exp(-sigma_t ((t - t_in) + b / cos(theta))) dtheta,
+ * done here by Simpson in double. A fixed step that samples 1/d^2 at its
+ * midpoint is many times too bright when the sample lands beside the light
+ * and too dark when the light sits between two samples; the step's mean of
+ * 1/d^2 (lu_k_rm_near_light) leaves only the step's variation of the
+ * transmittances, at most sigma_t h relative. */
+static void test_ray_past_point_light(void) {
+    const double sig_s = 0.2, sig_a = 0.05, sig_t = sig_s + sig_a, I = 10.0, b = 0.01;
+    /* 16 steps across the box's diagonal 2 sqrt(3): the ray's 2 units take
+     * ceil(16 / sqrt(3)) = 10 steps of h = 0.2, samples at z = 0.9, 0.7, ..., 0.1, -0.1, ...:
+     * the light at z = 0.1 sits beside a sample, at z = 0 midway between two. */
+    const double h = 0.2, zl[2] = {0.1, 0.0};
+    for (int k = 0; k < 2; k++) {
+        char json[1024];
+        snprintf(json, sizeof json,
+                 "{\"camera\": {\"position\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov_y_deg\": 10, \"width\": 1, \"height\": 1},"
+                 " \"lights\": [{\"type\": \"point\", \"position\": [%.9g, 0, %.9g], \"intensity\": %.9g}],"
+                 " \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": %.9g, \"sigma_a\": %.9g,"
+                 "   \"boundary\": {\"mesh\": {\"procedural\": \"box\", \"size\": [2, 2, 2]}, \"eta\": 1}}]}",
+                 b, zl[k], I, sig_s, sig_a);
+        lu_scene s;
+        lu_error err = {0};
+        lu_result r = lu_scene_load_string(json, LU_SOURCE_DIR "/scenes", &s, &err);
+        CHECK_OK(r, &err);
+        if (r != LU_OK) continue;
+        /* camera ray o = (0, 0, 5), d = (0, 0, -1) inside the box for t in [4, 6] */
+        double tc = 5.0 - zl[k], ta = atan((4.0 - tc) / b), tb = atan((6.0 - tc) / b), sum = 0.0;
+        const int n = 200000;
+        for (int i = 0; i <= n; i++) {
+            double th = ta + (tb - ta) * i / n, t = tc + b * tan(th);
+            double f = exp(-sig_t * ((t - 4.0) + b / cos(th)));
+            sum += f * (i == 0 || i == n ? 1.0 : (i % 2 ? 4.0 : 2.0));
+        }
+        double truth = sig_s * I / (4.0 * LU_PI * b) * sum * (tb - ta) / (3.0 * n);
+        lu_image img;
+        if (render(&s, "raymarch", LU_BACKEND_CPU, 16, 16, &img)) {
+            double got = lu_image_px(&img, 0, 0)[0];
+            fprintf(stderr, "  light %s: march %.5g, closed form %.5g (%.2f %%)\n", k ? "between two samples" : "beside a sample", got,
+                    truth, 100.0 * (got / truth - 1.0));
+            CHECK_NEAR(got, truth, sig_t * h * truth);
+            lu_image_destroy(&img);
+        }
+        lu_image gpu;
+        if (render(&s, "raymarch", LU_BACKEND_GPU, 16, 16, &gpu)) {
+            CHECK_NEAR(lu_image_px(&gpu, 0, 0)[0], truth, sig_t * h * truth);
+            lu_image_destroy(&gpu);
+        }
+        lu_scene_destroy(&s);
+    }
+}
+
 int main(void) {
     RUN_TEST(test_converges_to_reference);
     RUN_TEST(test_shadow_maps_converge);
+    RUN_TEST(test_ray_past_point_light);
     TEST_EXIT();
 }

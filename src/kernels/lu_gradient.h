@@ -132,8 +132,9 @@ LU_FN vec3 lu_k_gr_lookup(LU_CTX_PARAM, lu_k_gr_params G, vec3 x) {
 
 /* The march's source term (hook LU_K_RM_INSCATTER of lu_raymarch.h):
  * sum_m sigma_s,m D_m(x) J(x), J from the radiance grid. dens has
- * LU_K_RM_MAX_MEDIA (8) entries. */
-LU_FN vec3 lu_k_gr_inscatter(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float dens[8], int nm) {
+ * LU_K_RM_MAX_MEDIA (8) entries. The step's extent [sa, sb] is unused: J
+ * is interpolated from the grid, with no 1/d^2 peak at the sample. */
+LU_FN vec3 lu_k_gr_inscatter(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float sa, float sb, float dens[8], int nm) {
     lu_k_gr_params G = lu_k_gr_get(LU_CTX);
     vec3 J = lu_k_gr_lookup(LU_CTX, G, x);
     if (G.normalize != 0) J = lu_v3_mul(J, lu_k_gr_norm(LU_CTX, G, x));

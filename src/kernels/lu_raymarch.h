@@ -140,17 +140,46 @@ LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     return lu_k_shadow_lookup(LU_CTX, vw, first + face, res, x, n);
 }
 
+/* A point or spot light at p and the march step x + s d, s in [sa, sb]:
+ * the factor that turns the light's 1/|p - x|^2 at the sample x into the
+ * step's mean of 1/|p - x - s d|^2,
+ *   (atan((sb - tc)/b) - atan((sa - tc)/b)) / (b (sb - sa)),
+ * tc the closest approach to p and b the line's distance to p. A fixed step
+ * passing a light inside a medium otherwise hits or misses the 1/d^2 peak
+ * (smoke_glow: one pixel 50x too bright, 15 % rel-L2 at 512x512). The
+ * difference of the two atans is taken as one atan2 (both scaled by b^2),
+ * exact in float at every distance, so the factor is applied to every step
+ * rather than only near the light: it costs a sqrt and an atan2 per light
+ * and step beside the shadow ray's optical depth, has no cutoff to cause a
+ * seam, and away from the light it is 1 + O((h/d)^2) at the step's midpoint.
+ * b is kept >= 1e-3 of the step so a light exactly on the ray (whose mean
+ * diverges) gives a large finite value. */
+LU_FN float lu_k_rm_near_light(vec3 p, vec3 x, vec3 d, float sa, float sb) {
+    vec3 op = lu_v3_sub(p, x);
+    float d2 = lu_v3_dot(op, op);
+    float tc = lu_v3_dot(op, d);
+    float h = sb - sa;
+    float b = lu_max(lu_sqrt(lu_max(d2 - tc * tc, 0.0f)), 1e-3f * h);
+    return lu_atan2(b * h, b * b + (sb - tc) * (sa - tc)) * d2 / (b * h);
+}
+
 /* In-scattered radiance per unit length at x towards -d (before the
- * step's extinction): sum over media and lights of sigma_s D phase E T V.
- * dens[m]: medium m's density at x. A method that precomputes the source
- * term (gradient: a radiance grid) defines LU_K_RM_INSCATTER to its own
- * lookup before including this file; the march stays this one. */
-LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float dens[LU_K_RM_MAX_MEDIA], int nm) {
+ * step's extinction): sum over media and lights of sigma_s D phase E T V,
+ * the step covering x + s d for s in [sa, sb] (point and spot lights take
+ * the step's mean of 1/d^2, lu_k_rm_near_light). dens[m]: medium m's
+ * density at x. A method that precomputes the source term (gradient: a
+ * radiance grid) defines LU_K_RM_INSCATTER to its own lookup before
+ * including this file; the march stays this one. */
+LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float sa, float sb,
+                                   float dens[LU_K_RM_MAX_MEDIA], int nm) {
     vec3 S = lu_v3s(0.0f);
     int nl = lu_k_light_count(LU_CTX);
     for (int l = 0; l < nl; l++) {
-        lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), x);
+        lu_k_light lk = lu_k_light_get(LU_CTX, l);
+        lu_k_light_sample ls = lu_k_light_arrive(lk, x);
         if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+        if (lk.type != LU_K_LIGHT_DIRECTIONAL)
+            ls.irradiance = lu_v3_scale(ls.irradiance, lu_k_rm_near_light(lk.position, x, d, sa, sb));
         float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), map_res);
         if (vis <= 0.0f) continue;
         vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, LU_K_RM_LIGHT_TR(l, x, ls)), vis);
@@ -230,7 +259,7 @@ LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
         }
         if (lu_v3_maxc(sig_t) <= 0.0f) continue;
         vec3 S = lu_v3s(0.0f);
-        if (scatters) S = LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, dens, nm);
+        if (scatters) S = LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, -u * h, (1.0f - u) * h, dens, nm);
         /* The step's in-scattering weight, the integral of exp(-sigma s)
          * over [0, h] = h (1 - exp(-x)) / x with x = sigma h (series for
          * small x: 1 - exp(-x) cancels in float at fine steps). The camera
