@@ -313,9 +313,7 @@ static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_bac
                         "only (use bssrdf or pathtrace for translucent objects)",
                         scene->media[m].from_object);
     lu_afm_map_init(&st->map, scene, res, (int)params[P_COEFS], (int)params[P_SAMPLES]);
-    lu_aabb bounds = lu_scene_bounds(scene);
-    float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
-    st->eps = 1e-5f * fmaxf(size, 1e-3f);
+    st->eps = lu_scene_ray_epsilon(scene);
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, (int)params[P_SHADOW_RES], true, err);
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
     st->km = calloc(nm, sizeof *st->km);

@@ -423,9 +423,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
     if (st->p[P_D_MAX] <= st->p[P_D_MIN] && r == LU_OK)
         r = lu_fail(err, LU_ERR_RANGE, "bssrdf.d_max must exceed bssrdf.d_min");
 
-    lu_aabb bounds = lu_scene_bounds(scene);
-    float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
-    st->eps = 1e-5f * fmaxf(size, 1e-3f);
+    st->eps = lu_scene_ray_epsilon(scene);
     st->objects_box = lu_aabb_empty();
     st->tindex = malloc((size_t)(scene->object_count ? scene->object_count : 1) * sizeof *st->tindex);
     if (!st->tindex && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");

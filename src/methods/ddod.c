@@ -192,9 +192,7 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
                 st->env_on = 1;
             }
     }
-    lu_aabb bounds = lu_scene_bounds(scene);
-    float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
-    st->eps = 1e-5f * fmaxf(size, 1e-3f);
+    st->eps = lu_scene_ray_epsilon(scene);
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, 16, false, err);
     st->medium_count = scene->medium_count;
     st->km = calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *st->km);

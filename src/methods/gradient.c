@@ -213,9 +213,7 @@ static lu_result gr_prepare_mode(const lu_scene *scene, const double *params, in
             r = lu_fail(err, LU_ERR_UNSUPPORTED,
                         "%s: media %d and 0 have different phase_g (%g vs %g); the source radiance field holds one phase",
                         who, m, scene->media[m].phase_g, scene->media[0].phase_g);
-    lu_aabb bounds = lu_scene_bounds(scene);
-    float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
-    st->eps = 1e-5f * fmaxf(size, 1e-3f);
+    st->eps = lu_scene_ray_epsilon(scene);
     st->who = who;
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, (int)st->p[P_SHADOW_RES], true, err);
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;

@@ -16,6 +16,15 @@ extern const lu_method lu_method_rbf;
 extern const lu_method lu_method_pervoxel;
 extern const lu_method lu_method_ddod;
 
+/* Offset for secondary rays leaving a surface: a fixed fraction of the
+ * scene's size, so it neither self-intersects nor skips thin features at any
+ * scale (every method uses the same one). */
+static inline float lu_scene_ray_epsilon(const lu_scene *scene) {
+    lu_aabb bounds = lu_scene_bounds(scene);
+    float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
+    return 1e-5f * fmaxf(size, 1e-3f);
+}
+
 /* The kernel-side light record (cone angles as cosines). */
 static inline lu_k_light lu_light_to_kernel(const lu_light *l) {
     lu_k_light k;

@@ -1198,9 +1198,8 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
     st->transmittance = (int)params[P_TRANSMITTANCE];
     lu_result r = LU_OK;
 
+    st->eps = lu_scene_ray_epsilon(scene);
     lu_aabb bounds = lu_scene_bounds(scene);
-    float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
-    st->eps = 1e-5f * fmaxf(size, 1e-3f);
     if (lu_aabb_valid(bounds)) {
         st->scene_center = lu_v3_scale(lu_v3_add(bounds.lo, bounds.hi), 0.5f);
         st->scene_radius = 0.5f * lu_v3_len(lu_v3_sub(bounds.hi, bounds.lo));

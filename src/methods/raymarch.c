@@ -78,9 +78,7 @@ static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_back
     lu_result r = LU_OK;
     if (scene->medium_count > LU_K_RM_MAX_MEDIA)
         r = lu_fail(err, LU_ERR_LIMIT, "raymarch: %d media (at most %d)", scene->medium_count, LU_K_RM_MAX_MEDIA);
-    lu_aabb bounds = lu_scene_bounds(scene);
-    float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
-    st->eps = 1e-5f * fmaxf(size, 1e-3f);
+    st->eps = lu_scene_ray_epsilon(scene);
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, st->res, false, err);
     st->km = calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *st->km);
     if (!st->km && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");

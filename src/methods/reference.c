@@ -579,9 +579,7 @@ static lu_result ref_prepare(const lu_scene *scene, const double *params, lu_bac
     st->env_samples = (int)params[P_ENV_SAMPLES];
     lu_result r = LU_OK;
 
-    lu_aabb bounds = lu_scene_bounds(scene);
-    float size = lu_aabb_valid(bounds) ? lu_v3_maxc(lu_v3_sub(bounds.hi, bounds.lo)) : 1.0f;
-    st->eps = 1e-5f * fmaxf(size, 1e-3f);
+    st->eps = lu_scene_ray_epsilon(scene);
 
     r = lu_opaque_accel_build(scene, &st->opaque, &st->opaque_object, err);
 
