@@ -26,6 +26,7 @@ static inline float lu_k_ddod_pixel_f(const struct lu_k_ctx *c, int pixel, int k
 static inline int lu_k_ddod_tile_start(const struct lu_k_ctx *c, int tile) { return 0; }
 static inline int lu_k_ddod_tile_item(const struct lu_k_ctx *c, int k) { return 0; }
 static inline lu_vec3 lu_k_ddod_env_coeff(const struct lu_k_ctx *c, int k) { return lu_v3s(0.0f); }
+static inline lu_vec3 lu_k_ddod_traced(const struct lu_k_ctx *c, int k) { return lu_v3s(0.0f); }
 static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) {
     lu_k_medium k;
     memset(&k, 0, sizeof k);
