@@ -369,6 +369,7 @@ static lu_result update_traced(ddod_state *st, lu_error *err) {
         st->tab_cam = cam;
         st->tab_view_valid = true;
         st->stats.ms_traced_view = 1e3 * (lu_time_seconds() - t0);
+        st->stats.traced_view_updates++;
     }
     if (lights) {
         double t0 = lu_time_seconds();
@@ -376,6 +377,7 @@ static lu_result update_traced(ddod_state *st, lu_error *err) {
         memcpy(st->tab_lights, st->kl, (size_t)st->nl * sizeof *st->tab_lights);
         st->tab_lights_valid = true;
         st->stats.ms_traced_lights = 1e3 * (lu_time_seconds() - t0);
+        st->stats.traced_light_updates++;
     }
     if (view || lights) st->tab_version++;
     return LU_OK;
@@ -573,6 +575,16 @@ bool lu_ddod_last_stats(const lu_renderer *r, lu_ddod_stats *out) {
     if (!r || strcmp(r->method->name, "ddod") != 0 || !r->state) return false;
     *out = ((const ddod_state *)r->state)->stats;
     return true;
+}
+
+const float *lu_ddod_traced_table(const lu_renderer *r, int *lights, int *count, const float **samples) {
+    if (!r || strcmp(r->method->name, "ddod") != 0 || !r->state) return NULL;
+    const ddod_state *st = r->state;
+    if (!st->traced || !st->traced_tab) return NULL;
+    *lights = st->tab_nl;
+    *count = st->set.count;
+    *samples = st->set.samples;
+    return st->traced_tab;
 }
 
 const lu_method lu_method_ddod = {

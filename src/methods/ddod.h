@@ -143,8 +143,14 @@ typedef struct lu_ddod_stats {
     double ms_pixels, ms_samples, ms_binning, ms_gather;
     double ms_traced_view;     /* traced psi towards the camera this frame (0: the camera did not move) */
     double ms_traced_lights;   /* traced psi^F towards the lights this frame (0: no light moved) */
+    int traced_view_updates, traced_light_updates;  /* recomputations of the traced table so far */
     lu_ddod_timing precompute;
 } lu_ddod_stats;
 bool lu_ddod_last_stats(const lu_renderer *r, lu_ddod_stats *out);
+/* The traced table of a ddod renderer's last frame: per sample 1 + *lights
+ * entries of 4 floats (psi towards the camera, then psi^F towards each
+ * kernel light; kernels/lu_ddod.h), the *count samples' records in
+ * *samples. NULL when the renderer traces nothing. */
+const float *lu_ddod_traced_table(const lu_renderer *r, int *lights, int *count, const float **samples);
 
 #endif
