@@ -884,9 +884,29 @@ static lu_result sort_samples(float *pts, float *rad, int count, lu_vec3 lo, lu_
     return LU_OK;
 }
 
-static int cmp_float(const void *a, const void *b) {
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
+/* The k-th smallest of a[0 .. n) (0-based), which it partially reorders:
+ * afterwards a[0 .. k) holds values <= it (quickselect, Hoare partition). */
+static float select_kth(float *a, int n, int k) {
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        float pivot = a[lo + (hi - lo) / 2];
+        int i = lo, j = hi;
+        while (i <= j) {
+            while (a[i] < pivot) i++;
+            while (a[j] > pivot) j--;
+            if (i <= j) {
+                float t = a[i];
+                a[i] = a[j];
+                a[j] = t;
+                i++;
+                j--;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;
+    }
+    return a[k];
 }
 
 static bool grey(lu_vec3 v) { return v.x == v.y && v.y == v.z; }
@@ -970,8 +990,9 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
             int k = 0;
             for (size_t v = 0; v < g.count; v++)
                 if (inv[v] >= 0.0f) sorted[k++] = inv[v];
-            qsort(sorted, (size_t)cnt, sizeof *sorted, cmp_float);
-            float lo = sorted[(int)(0.02 * (cnt - 1))], hi = sorted[(int)(0.98 * (cnt - 1))];
+            int klo = (int)(0.02 * (cnt - 1)), khi = (int)(0.98 * (cnt - 1));
+            float hi = select_kth(sorted, cnt, khi);
+            float lo = select_kth(sorted, khi, klo); /* the first khi now hold the smaller values */
             free(sorted);
             float base = (float)cbrt(volume / (2.0 * n_target));
             for (size_t v = 0; v < g.count; v++) {
