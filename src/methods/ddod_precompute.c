@@ -292,7 +292,29 @@ typedef struct moment_job {
     float sigma_t;
     int32_t **acc;         /* groups x 3 axes x 3 components, permuted layouts */
     float **scratch;       /* groups x 2 slices */
+    float *T;              /* the result: 3 component arrays, native layout */
 } moment_job;
+
+/* T of rows (y, z) of the native layout: the integer sums of all groups and
+ * axes, scaled by the quadrature weight. */
+static void moment_sum_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    moment_job *j = ctx;
+    const vgrid *g = j->g;
+    double wq = 4.0 * M_PI / j->ndirs / DDOD_FIX;
+    for (int64_t r = begin; r < end; r++) {
+        int v[3] = {0, (int)(r % g->n[1]), (int)(r / g->n[1])};
+        for (v[0] = 0; v[0] < g->n[0]; v[0]++) {
+            int64_t s[3] = {0, 0, 0};
+            for (int gi = 0; gi < j->groups; gi++)
+                for (int a = 0; a < 3; a++) {
+                    size_t p = pidx(g, a, v);
+                    for (int comp = 0; comp < 3; comp++) s[comp] += j->acc[(gi * 3 + a) * 3 + comp][p];
+                }
+            size_t i = vidx(g, v[0], v[1], v[2]);
+            for (int comp = 0; comp < 3; comp++) j->T[comp * g->count + i] = (float)(s[comp] * wq);
+        }
+    }
+}
 
 static void moment_groups(void *ctx, int64_t begin, int64_t end, int thread) {
     moment_job *j = ctx;
@@ -327,7 +349,7 @@ static lu_result first_moment(const vgrid *g, const lu_vec3 *dirs, int ndirs, fl
     int groups = lu_thread_count();
     if (groups > ndirs) groups = ndirs;
     if (groups > 8) groups = 8;
-    moment_job j = {g, dirs, ndirs, groups, sigma_t, NULL, NULL};
+    moment_job j = {g, dirs, ndirs, groups, sigma_t, NULL, NULL, NULL};
     j.acc = calloc((size_t)groups * 9, sizeof *j.acc);
     j.scratch = calloc((size_t)groups * 2, sizeof *j.scratch);
     bool ok = j.acc && j.scratch;
@@ -336,20 +358,8 @@ static lu_result first_moment(const vgrid *g, const lu_vec3 *dirs, int ndirs, fl
     for (int i = 0; ok && i < groups * 2; i++) ok = (j.scratch[i] = malloc(slice * sizeof(float))) != NULL;
     if (ok) {
         lu_parallel_for(groups, 1, moment_groups, &j, "ddod: optical depth");
-        double wq = 4.0 * M_PI / ndirs / DDOD_FIX;
-        int v[3];
-        for (v[2] = 0; v[2] < g->n[2]; v[2]++)
-            for (v[1] = 0; v[1] < g->n[1]; v[1]++)
-                for (v[0] = 0; v[0] < g->n[0]; v[0]++) {
-                    int64_t s[3] = {0, 0, 0};
-                    for (int gi = 0; gi < groups; gi++)
-                        for (int a = 0; a < 3; a++) {
-                            size_t p = pidx(g, a, v);
-                            for (int comp = 0; comp < 3; comp++) s[comp] += j.acc[(gi * 3 + a) * 3 + comp][p];
-                        }
-                    size_t i = vidx(g, v[0], v[1], v[2]);
-                    for (int comp = 0; comp < 3; comp++) T[comp * g->count + i] = (float)(s[comp] * wq);
-                }
+        j.T = T;
+        lu_parallel_for((int64_t)g->n[1] * g->n[2], 0, moment_sum_rows, &j, NULL);
     }
     for (int i = 0; j.acc && i < groups * 9; i++) free(j.acc[i]);
     for (int i = 0; j.scratch && i < groups * 2; i++) free(j.scratch[i]);
