@@ -2,7 +2,8 @@
 # Regenerates the measurements of docs/ddod.md into docs/ddod/:
 #   bench_<scene>.csv   lucent bench rows (ddod, CPU and GPU) against the reference
 #   dirs.csv + sphere_dirs<N>.png / _diff.png   the paper's Table 1 (32/128/512 directions)
-#   precompute.csv      precomputation time breakdown at 128^3, 32 and 128 directions
+#   precompute.csv      precomputation time per stage at 128^3, 32 and 128 directions
+#                       (scripts/ddod_precompute.sh)
 #   scaling.csv + scaling.png   frame time vs lights and vs samples (examples/ddod_scaling)
 #   <scene>.png, <scene>_diff.png   default-settings images and difference images
 # Usage: scripts/ddod_docs.sh [BUILD_DIR]   (run from the repository root)
@@ -51,8 +52,8 @@ for d in 32 128 512; do
   echo "$d,$n,$e,$t" >>"$OUT/dirs.csv"
 done
 
-# 3. precomputation at 128^3 (the default res) with 32 and 128 directions: rows of dirs.csv
-grep -E "^(dirs|32|128)," "$OUT/dirs.csv" >"$OUT/precompute.csv"
+# 3. precomputation at 128^3 (the default res) with 32 and 128 directions, per stage
+scripts/ddod_precompute.sh "$build" >"$OUT/precompute.csv"
 
 # 4. frame time vs lights and samples, both backends, one run
 if [ "${SKIP_SCALING:-0}" != 1 ]; then
