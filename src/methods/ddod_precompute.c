@@ -619,11 +619,53 @@ static float vol_sample(const vgrid *g, int a, const float *vol, lu_vec3 p) {
     return acc;
 }
 
+bool lu_ddod_ray(const lu_accel *boundary, const lu_accel *opaque, float eta, lu_vec3 b, lu_vec3 w, float tmax,
+                 lu_ddod_span_fn span, void *user, float *tau, float *ft) {
+    lu_hit hits[DDOD_MAX_CROSSINGS];
+    *tau = 0.0f;
+    *ft = 1.0f;
+    if (opaque && lu_accel_occluded(opaque, b, w, 0.0f, tmax)) {
+        *tau = INFINITY;
+        *ft = 0.0f;
+        return true;
+    }
+    int n = lu_accel_all_hits(boundary, b, w, 0.0f, tmax, hits, DDOD_MAX_CROSSINGS);
+    bool ok = n >= 0;
+    if (n < 0) n = 0;
+    if (n > DDOD_MAX_CROSSINGS) n = DDOD_MAX_CROSSINGS;
+    /* b is inside: spans [0, t0], [t1, t2], ..., and [t_last, tmax] when the
+     * ray ends inside (a light within the object). */
+    float acc = 0.0f, f = 1.0f, start = 0.0f;
+    for (int k = 0; k < n; k++) {
+        f *= lu_k_fresnel_transmittance(lu_v3_dot(hits[k].ng, w), eta);
+        if ((k & 1) == 0) acc += span(user, b, w, start, hits[k].t);
+        else start = hits[k].t;
+    }
+    if ((n & 1) == 0 && tmax < 1e29f) acc += span(user, b, w, start, tmax);
+    *tau = acc > 0.0f ? acc : 0.0f;
+    *ft = f;
+    return ok;
+}
+
+/* Span integrals of the precomputation: exact for constant media, the
+ * difference of the direction's unmasked sweep for grids. */
+typedef struct psi_span {
+    const vgrid *g;
+    const lu_medium *m;
+    const float *vol;
+    int axis;
+} psi_span;
+
+static float psi_span_depth(void *user, lu_vec3 b, lu_vec3 w, float t0, float t1) {
+    const psi_span *s = user;
+    if (s->m->kind != LU_DENSITY_GRID) return s->m->constant * (t1 - t0);
+    return vol_sample(s->g, s->axis, s->vol, lu_v3_madd(b, w, t0)) - vol_sample(s->g, s->axis, s->vol, lu_v3_madd(b, w, t1));
+}
+
 static void psi_dirs(void *ctx, int64_t begin, int64_t end, int thread) {
     psi_job *j = ctx;
     const vgrid *g = j->g;
     bool grid = j->m->kind == LU_DENSITY_GRID;
-    lu_hit hits[DDOD_MAX_CROSSINGS];
     for (int64_t d = begin; d < end; d++) {
         lu_vec3 w = j->dirs[d];
         float wv[3] = {w.x, w.y, w.z};
@@ -632,36 +674,13 @@ static void psi_dirs(void *ctx, int64_t begin, int64_t end, int thread) {
             sweep_out o = {{NULL, NULL, NULL}, 0.0f, j->vol[thread]};
             sweep(g, w, false, j->scratch[2 * thread], j->scratch[2 * thread + 1], &o);
         }
+        psi_span sp = {g, j->m, grid ? j->vol[thread] : NULL, a};
         for (int i = 0; i < j->count; i++) {
             lu_vec3 b = lu_v3(j->pts[3 * i], j->pts[3 * i + 1], j->pts[3 * i + 2]);
             size_t at = (size_t)i * j->ndirs + (size_t)d;
-            if (j->opaque && lu_accel_occluded(j->opaque, b, w, 0.0f, 1e30f)) {
-                j->tau[at] = INFINITY;
-                j->ft[at] = 0.0f;
-                continue;
-            }
-            int n = lu_accel_all_hits(j->boundary, b, w, 0.0f, 1e30f, hits, DDOD_MAX_CROSSINGS);
-            if (n < 0) {
+            if (!lu_ddod_ray(j->boundary, j->opaque, j->m->eta, b, w, 1e30f, psi_span_depth, &sp, &j->tau[at],
+                             &j->ft[at]))
                 atomic_store(&j->failed, 1);
-                n = 0;
-            }
-            if (n > DDOD_MAX_CROSSINGS) n = DDOD_MAX_CROSSINGS;
-            /* b is inside: spans [0, t0], [t1, t2], ... */
-            float tau = 0.0f, ft = 1.0f, start = 0.0f;
-            for (int k = 0; k < n; k++) {
-                ft *= lu_k_fresnel_transmittance(lu_v3_dot(hits[k].ng, w), j->m->eta);
-                if ((k & 1) == 0) {
-                    float t = hits[k].t;
-                    if (grid)
-                        tau += vol_sample(g, a, j->vol[thread], lu_v3_madd(b, w, start)) -
-                               vol_sample(g, a, j->vol[thread], lu_v3_madd(b, w, t));
-                    else tau += j->m->constant * (t - start);
-                } else {
-                    start = hits[k].t;
-                }
-            }
-            j->tau[at] = tau > 0.0f ? tau : 0.0f;
-            j->ft[at] = ft;
         }
     }
 }
