@@ -229,12 +229,16 @@ static void sweep_row(const float *restrict qp, float *restrict qc, const float 
  * fixed point, nothing in blocked voxels. */
 static void moment_row(const float *restrict drow, const float *restrict tau, float sigma_t, float fx, float fy,
                        float fz, int32_t *restrict ax, int32_t *restrict ay, int32_t *restrict az, int nb) {
+    /* Adding and removing 1.5 * 2^23 rounds to the nearest integer (ties to
+     * even) for |x| < 2^22, as lrintf does, without a library call: the
+     * products are at most DDOD_FIX = 2^20. */
+    const float magic = 12582912.0f;
     for (int jb = 0; jb < nb; jb++) {
         if (!(drow[jb] < DDOD_BLOCK_DENSITY)) continue;
         float e = expf(-sigma_t * tau[jb]);
-        ax[jb] += (int32_t)lrintf(e * fx);
-        ay[jb] += (int32_t)lrintf(e * fy);
-        az[jb] += (int32_t)lrintf(e * fz);
+        ax[jb] += (int32_t)((e * fx + magic) - magic);
+        ay[jb] += (int32_t)((e * fy + magic) - magic);
+        az[jb] += (int32_t)((e * fz + magic) - magic);
     }
 }
 
