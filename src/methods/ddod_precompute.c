@@ -859,6 +859,7 @@ typedef struct sh_job {
     lu_vec3 sigma_t;
     const float *tau, *ft;
     float *sh;
+    atomic_int failed;     /* a worker could not get its scratch */
 } sh_job;
 
 /* Per sample: psi and psi^F at the directions, projected as lu_ddod_sh_project
@@ -866,7 +867,10 @@ typedef struct sh_job {
 static void sh_samples(void *ctx, int64_t begin, int64_t end, int thread) {
     sh_job *j = ctx;
     float *f = malloc((size_t)j->ndirs * 2 * sizeof *f);
-    if (!f) return;
+    if (!f) {
+        atomic_store(&j->failed, 1);
+        return;
+    }
     float *fF = f + j->ndirs;
     int nc = j->bands * j->bands;
     double scale = 4.0 * M_PI / j->ndirs;
@@ -1157,8 +1161,10 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
                 memcpy(Y + (size_t)d * nc, y, (size_t)nc * sizeof *y);
             }
             sh_job sj = {Y, p->dirs, out->bands, out->channels, out->stride, count, sigma_t, tau, ft,
-                         out->sh + (size_t)base * out->stride};
+                         out->sh + (size_t)base * out->stride, 0};
             if (r == LU_OK) lu_parallel_for(count, 0, sh_samples, &sj, NULL);
+            if (r == LU_OK && atomic_load(&sj.failed))
+                r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory in the SH projection");
             free(Y);
             out->count = (int)total;
         }
