@@ -30,8 +30,8 @@ struct lu_k_ctx {
 
 /* A camera-visible surface is lit with the exact visibility the CPU traced
  * (media_ray.h), as afm does: a shadow map leaks light at the edges of thin
- * occluders (dusty_room's sun through the window: 0.35 rel-L2 with the map,
- * docs/gpu.md). The samples in the media keep the shadow maps. */
+ * occluders (dusty_room's sun through the window: 0.32 rel-L2 with the map,
+ * 0.015 without, docs/gpu.md). The samples in the media keep the maps. */
 static inline float lu_k_rm_surface_vis(const struct lu_k_ctx *c, int pixel, int l) {
     return c->f->surface_vis[(size_t)pixel * c->nl + l];
 }
