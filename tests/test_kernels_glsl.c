@@ -48,6 +48,7 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "int lu_k_ddod_tile_start(LU_CTX_PARAM, int tile) { return 0; }\n"
                                 "int lu_k_ddod_tile_item(LU_CTX_PARAM, int k) { return 0; }\n"
                                 "vec3 lu_k_ddod_env_coeff(LU_CTX_PARAM, int k) { return vec3(0.0); }\n"
+                                "vec3 lu_k_ddod_traced(LU_CTX_PARAM, int k) { return vec3(0.0); }\n"
                                 "float lu_k_afm_lspan(LU_CTX_PARAM, int texel, int m, int k) { return float(k); }\n"
                                 "void lu_k_afm_store(LU_CTX_PARAM, int texel, int i, float v) { o.v[i] = v; }\n"
                                 "float lu_k_afm_fetch(LU_CTX_PARAM, int texel, int i) { return float(i); }\n"

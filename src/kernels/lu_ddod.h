@@ -35,6 +35,8 @@
  *   float lu_k_ddod_pixel_f(LU_CTX_PARAM, int pixel, int k);  LU_K_DDOD_PIXEL_* of a pixel
  *   int lu_k_ddod_tile_start(LU_CTX_PARAM, int tile);  int lu_k_ddod_tile_item(LU_CTX_PARAM, int k);
  *   vec3 lu_k_ddod_env_coeff(LU_CTX_PARAM, int k);         environment SH (rgb), k < bands^2
+ *   vec3 lu_k_ddod_traced(LU_CTX_PARAM, int k);            the CPU's traced table (rgb): per sample i
+ *       1 + lights entries, k = i (1 + lights): psi towards the camera, k + 1 + l: psi^F towards light l
  *   int lu_k_medium_count / lu_k_medium_get, lu_k_light_count / lu_k_light_get (as lu_raymarch.h). */
 #ifndef LU_DDOD_H
 #define LU_DDOD_H
@@ -105,14 +107,22 @@ LU_FN vec3 lu_k_ddod_sample_radiance(LU_CTX_PARAM, lu_k_ddod_params P, int i, ve
     if (dens <= 0.0f || lu_v3_maxc(md.sigma_s) <= 0.0f) return lu_v3s(0.0f);
     vec3 to_cam = lu_v3_norm(lu_v3_sub(cam, b));
     vec3 w = lu_v3_neg(to_cam);  /* the camera ray's direction at the sample */
-    vec3 view = lu_k_ddod_psi(LU_CTX, P, i, 0, to_cam);
+    int nl = lu_k_light_count(LU_CTX);
+    int row = i * (nl + 1);
+    /* Traced (the default, an extension): psi exactly at this sample's
+     * camera and light directions, from the CPU's table. psi near a flat
+     * face falls from ~1 to the far side's value within a few degrees of the
+     * face's plane, and a light just outside a face switches psi^F from ~F_t
+     * to ~0 there: 25 SH coefficients smear both (docs/ddod.md). The SH
+     * sets stay for environment light and for ddod.*_psi = sh. */
+    vec3 view = (P.traced & LU_K_DDOD_TRACED_VIEW) != 0 ? lu_k_ddod_traced(LU_CTX, row) : lu_k_ddod_psi(LU_CTX, P, i, 0, to_cam);
     if (lu_v3_maxc(view) <= 0.0f) return lu_v3s(0.0f);
     vec3 S = lu_v3s(0.0f);
-    int nl = lu_k_light_count(LU_CTX);
     for (int l = 0; l < nl; l++) {
         lu_k_light_sample ls = lu_k_light_arrive(lu_k_light_get(LU_CTX, l), b);
         if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-        vec3 att = lu_k_ddod_psi(LU_CTX, P, i, 1, ls.wl);
+        vec3 att = (P.traced & LU_K_DDOD_TRACED_LIGHTS) != 0 ? lu_k_ddod_traced(LU_CTX, row + 1 + l)
+                                                             : lu_k_ddod_psi(LU_CTX, P, i, 1, ls.wl);
         S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(att, ls.irradiance), lu_k_phase_hg(lu_v3_dot(w, ls.wl), md.g)));
     }
     if (P.env != 0) {

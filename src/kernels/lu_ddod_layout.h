@@ -21,6 +21,9 @@
 /* Gaussians are cut off at this many standard deviations (exp(-4.5) = 1.1 %). */
 #define LU_K_DDOD_CUTOFF 3.0f
 #define LU_K_DDOD_MAX_CHANNELS 3
+/* Bits of lu_k_ddod_params.traced. */
+#define LU_K_DDOD_TRACED_VIEW 1     /* psi towards the camera */
+#define LU_K_DDOD_TRACED_LIGHTS 2   /* psi^F towards each point / spot / directional light */
 
 
 /* Per-frame constants of both passes. */
@@ -32,7 +35,8 @@ struct lu_k_ddod_params {
     int tile;         /* tile side in pixels */
     int tiles_x;
     int env;          /* 1: environment SH in lu_k_ddod_env_coeff */
-    int pad;
+    int traced;       /* LU_K_DDOD_TRACED_* bits: which psi come from the CPU's traced table
+                         (lu_k_ddod_traced) instead of the SH sets (the paper) */
 };
 LU_TYPEDEF(lu_k_ddod_params)
 

@@ -25,7 +25,7 @@ struct lu_k_ctx {
     int nm;
     const lu_k_light *kl;
     int nl;
-    const float *samples, *sh, *radiance, *pixels, *env;
+    const float *samples, *sh, *radiance, *pixels, *env, *traced;
     const int *tile_start, *tile_list;
 };
 
@@ -47,12 +47,29 @@ static inline int lu_k_ddod_tile_item(const struct lu_k_ctx *c, int k) { return 
 static inline lu_vec3 lu_k_ddod_env_coeff(const struct lu_k_ctx *c, int k) {
     return lu_v3(c->env[3 * k], c->env[3 * k + 1], c->env[3 * k + 2]);
 }
+static inline lu_vec3 lu_k_ddod_traced(const struct lu_k_ctx *c, int k) {
+    return lu_v3(c->traced[4 * k], c->traced[4 * k + 1], c->traced[4 * k + 2]);
+}
 
 #include "kernels/lu_camera.h"
 #include "kernels/lu_ddod.h"
 #include "kernels/lu_march.h"
 
-enum { P_RES, P_DIRS, P_SAMPLES, P_BANDS, P_WIDTH, P_FIT, P_NORMALIZE, P_WINDOW, P_CACHE, P_SEED, P_COUNT };
+enum {
+    P_RES,
+    P_DIRS,
+    P_SAMPLES,
+    P_BANDS,
+    P_WIDTH,
+    P_FIT,
+    P_NORMALIZE,
+    P_WINDOW,
+    P_VIEW_PSI,
+    P_LIGHT_PSI,
+    P_CACHE,
+    P_SEED,
+    P_COUNT
+};
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_RES] = {"res", LU_PARAM_INT, 128, 8, 512, NULL,
@@ -73,6 +90,12 @@ static const lu_param_desc k_params[P_COUNT] = {
                      "(partition of unity; off = the paper's plain sum)"},
     [P_WINDOW] = {"window", LU_PARAM_CHOICE, 0, 0, 2, "none|hanning|lanczos",
                   "per-band SH window against ringing: none, Hanning, or Lanczos sigma factors"},
+    [P_VIEW_PSI] = {"view_psi", LU_PARAM_CHOICE, 0, 0, 1, "traced|sh",
+                    "attenuation towards the camera: traced per sample on the CPU when the camera moves (exact), or "
+                    "sh = the paper's SH evaluation (smears the sharp falloff near flat faces)"},
+    [P_LIGHT_PSI] = {"light_psi", LU_PARAM_CHOICE, 0, 0, 1, "traced|sh",
+                     "attenuation towards point and directional lights: traced per sample on the CPU when a light "
+                     "moves (exact), or sh = the paper's SH evaluation (smears sharp shadows of flat faces)"},
     [P_CACHE] = {"cache", LU_PARAM_BOOL, 1, 0, 1, NULL,
                  "load / store the precomputation in $LUCENT_CACHE_DIR (default out/cache)"},
     [P_SEED] = {"seed", LU_PARAM_INT, 1, 0, 1000000, NULL, "seed of the Poisson-disk sampling"},
@@ -104,6 +127,16 @@ typedef struct ddod_state {
     lu_image *out;
     lu_ddod_stats stats;
     lu_ddod_gpu *gpu;
+    /* traced table (LU_K_DDOD_TRACED_* in traced): per sample 1 + nl
+     * entries of 4 floats, psi towards the camera at tab_cam, then psi^F
+     * towards each light of tab_lights (kernels/lu_ddod.h) */
+    int traced;
+    float *traced_tab;
+    lu_k_light *tab_lights;
+    int tab_nl;
+    lu_vec3 tab_cam;
+    bool tab_view_valid, tab_lights_valid;
+    unsigned tab_version;
 } ddod_state;
 
 static void ddod_destroy(void *state) {
@@ -118,6 +151,8 @@ static void ddod_destroy(void *state) {
     free(st->pixels);
     free(st->radiance);
     free(st->rects);
+    free(st->traced_tab);
+    free(st->tab_lights);
     lu_tile_bins_free(&st->bins);
     free(st);
 }
@@ -164,6 +199,8 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     st->backend = backend;
     st->normalize = (int)params[P_NORMALIZE];
+    st->traced = (params[P_VIEW_PSI] == 0.0 ? LU_K_DDOD_TRACED_VIEW : 0) |
+                 (params[P_LIGHT_PSI] == 0.0 ? LU_K_DDOD_TRACED_LIGHTS : 0);
     lu_ddod_params p;
     memset(&p, 0, sizeof p);
     p.res = (int)params[P_RES];
@@ -214,6 +251,135 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
                 t->total_s, t->optical_depth_s, t->divergence_s, t->sampling_s, t->sh_s, t->cpu_s);
     }
     *out = st;
+    return LU_OK;
+}
+
+/* Density integral of medium mi over [t0, t1] of o + t d: exact for a
+ * constant medium, the kernel's cell walk (lu_march.h) for a grid. */
+static float medium_depth(const ddod_state *st, int mi, lu_vec3 o, lu_vec3 d, float t0, float t1) {
+    const lu_medium *med = &st->scene->media[mi];
+    if (med->kind == LU_DENSITY_CONSTANT) return med->constant * (t1 - t0);
+    lu_k_medium km = st->km[mi];
+    float a = 0.0f, b = 0.0f;
+    return lu_k_box_clip(km.bounds_lo, km.bounds_hi, o, d, t0, t1, &a, &b)
+               ? lu_k_optical_depth(&st->kctx, mi, lu_k_medium_point(km, o), lu_k_medium_vector(km, d), a, b,
+                                    km.max_pieces)
+               : 0.0f;
+}
+
+/* ---- traced terms: psi of every sample towards the camera and psi^F
+ * towards every light, on the CPU (lu_ddod_ray: the precomputation's own
+ * ray walk), cached until the camera or a light moves ---- */
+
+typedef struct trace_span {
+    const ddod_state *st;
+    int mi;
+} trace_span;
+
+static float trace_span_depth(void *user, lu_vec3 b, lu_vec3 w, float t0, float t1) {
+    const trace_span *t = user;
+    return medium_depth(t->st, t->mi, b, w, t0, t1);
+}
+
+/* exp(-sigma_t tau) * (fresnel ? F_t : 1) of sample i's medium from b
+ * towards w over (0, dist). A ray query that ran out of memory leaves its
+ * spans short: psi too bright there, never a crash. */
+static lu_vec3 traced_psi(const ddod_state *st, int mi, lu_vec3 b, lu_vec3 w, float dist, bool fresnel) {
+    const lu_medium *med = &st->scene->media[mi];
+    trace_span ts = {st, mi};
+    float tau, ft;
+    (void)lu_ddod_ray(st->mr.boundary[mi], st->mr.opaque, med->eta, b, w, dist, trace_span_depth, &ts, &tau, &ft);
+    if (isinf(tau)) return lu_v3s(0.0f);
+    lu_vec3 psi = lu_v3_exp(lu_v3_scale(lu_v3_add(med->sigma_a, med->sigma_s), -tau));
+    return fresnel ? lu_v3_scale(psi, ft) : psi;
+}
+
+static void put4(float *o, lu_vec3 v) {
+    o[0] = v.x;
+    o[1] = v.y;
+    o[2] = v.z;
+    o[3] = 0.0f;
+}
+
+/* thread ranges of samples: entry 0 (view) or entries 1..nl (lights) */
+static void traced_view_range(void *ctx, int64_t begin, int64_t end, int thread) {
+    ddod_state *st = ctx;
+    (void)thread;
+    lu_vec3 cam = st->scene->camera.position;
+    for (int64_t i = begin; i < end; i++) {
+        const float *s = st->set.samples + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+        lu_vec3 b = lu_v3(s[0], s[1], s[2]), to = lu_v3_sub(cam, b);
+        float dist = lu_v3_len(to);
+        lu_vec3 psi = dist > 0.0f ? traced_psi(st, (int)s[LU_K_DDOD_SAMPLE_MEDIUM], b, lu_v3_scale(to, 1.0f / dist),
+                                               dist, false)
+                                  : lu_v3s(1.0f);
+        put4(st->traced_tab + (size_t)i * (st->nl + 1) * 4, psi);
+    }
+}
+
+static void traced_light_range(void *ctx, int64_t begin, int64_t end, int thread) {
+    ddod_state *st = ctx;
+    (void)thread;
+    for (int64_t i = begin; i < end; i++) {
+        const float *s = st->set.samples + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+        lu_vec3 b = lu_v3(s[0], s[1], s[2]);
+        for (int l = 0; l < st->nl; l++) {
+            lu_k_light_sample ls = lu_k_light_arrive(st->kl[l], b);
+            lu_vec3 psi = traced_psi(st, (int)s[LU_K_DDOD_SAMPLE_MEDIUM], b, ls.wl, ls.dist, true);
+            put4(st->traced_tab + ((size_t)i * (st->nl + 1) + 1 + l) * 4, psi);
+        }
+    }
+}
+
+/* psi^F depends on where a light is, not on its colour or strength:
+ * point and spot lights by position, directional lights by direction. */
+static bool light_moved(const lu_k_light *a, const lu_k_light *b) {
+    if (a->type != b->type) return true;
+    lu_vec3 x = a->type == LU_K_LIGHT_DIRECTIONAL ? a->direction : a->position;
+    lu_vec3 y = b->type == LU_K_LIGHT_DIRECTIONAL ? b->direction : b->position;
+    return x.x != y.x || x.y != y.y || x.z != y.z;
+}
+
+/* Brings the traced table up to date: the view entries when the camera
+ * moved, the light entries when a light moved (or the light count
+ * changed); a static scene costs nothing here. */
+static lu_result update_traced(ddod_state *st, lu_error *err) {
+    st->stats.ms_traced_view = st->stats.ms_traced_lights = 0.0;
+    if (!st->traced) return LU_OK;
+    bool fresh = st->tab_nl != st->nl || !st->traced_tab;
+    if (fresh) {
+        size_t need = (size_t)(st->set.count ? st->set.count : 1) * (size_t)(st->nl + 1) * 4;
+        float *t = realloc(st->traced_tab, need * sizeof *t);
+        lu_k_light *pl = realloc(st->tab_lights, (st->nl ? (size_t)st->nl : 1u) * sizeof *pl);
+        if (t) st->traced_tab = t;
+        if (pl) st->tab_lights = pl;
+        if (!t || !pl) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the traced table");
+        st->tab_nl = st->nl;
+    }
+    st->kctx.traced = st->traced_tab;
+    lu_vec3 cam = st->scene->camera.position;
+    bool view = (st->traced & LU_K_DDOD_TRACED_VIEW) &&
+                (fresh || !st->tab_view_valid || cam.x != st->tab_cam.x || cam.y != st->tab_cam.y || cam.z != st->tab_cam.z);
+    bool lights = (st->traced & LU_K_DDOD_TRACED_LIGHTS) && (fresh || !st->tab_lights_valid);
+    for (int l = 0; !lights && (st->traced & LU_K_DDOD_TRACED_LIGHTS) && l < st->nl; l++)
+        lights = light_moved(&st->kl[l], &st->tab_lights[l]);
+    if (view) {
+        double t0 = lu_time_seconds();
+        lu_parallel_for(st->set.count, 0, traced_view_range, st, NULL);
+        st->tab_cam = cam;
+        st->tab_view_valid = true;
+        st->stats.ms_traced_view = 1e3 * (lu_time_seconds() - t0);
+        st->stats.traced_view_updates++;
+    }
+    if (lights) {
+        double t0 = lu_time_seconds();
+        if (st->nl > 0) lu_parallel_for(st->set.count, 0, traced_light_range, st, NULL);
+        memcpy(st->tab_lights, st->kl, (size_t)st->nl * sizeof *st->tab_lights);
+        st->tab_lights_valid = true;
+        st->stats.ms_traced_lights = 1e3 * (lu_time_seconds() - t0);
+        st->stats.traced_light_updates++;
+    }
+    if (view || lights) st->tab_version++;
     return LU_OK;
 }
 
@@ -273,17 +439,7 @@ static void pixel_rows(void *ctx, int64_t begin, int64_t end, int thread) {
                 t1 = fminf(t1, t_end);
                 /* Exact transmittance of the camera ray through the span,
                  * for whatever lies behind it. */
-                float od;
-                if (med->kind == LU_DENSITY_CONSTANT) {
-                    od = med->constant * (t1 - t0);
-                } else {
-                    lu_k_medium km = st->km[mi];
-                    float a = 0.0f, b = 0.0f;
-                    od = lu_k_box_clip(km.bounds_lo, km.bounds_hi, o, d, t0, t1, &a, &b)
-                             ? lu_k_optical_depth(&st->kctx, mi, lu_k_medium_point(km, o), lu_k_medium_vector(km, d), a,
-                                                  b, km.max_pieces)
-                             : 0.0f;
-                }
+                float od = medium_depth(st, mi, o, d, t0, t1);
                 T = lu_v3_exp(lu_v3_scale(lu_v3_add(med->sigma_a, med->sigma_s), -od));
                 px[LU_K_DDOD_PIXEL_T0] = t0;
                 px[LU_K_DDOD_PIXEL_T1] = t1;
@@ -362,7 +518,9 @@ static lu_result ddod_render(void *state, const lu_scene *scene, lu_image *out, 
         if (!st->pixels_cap) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %zu pixels", pixels);
     }
     st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, st->nl, st->set.samples, st->sh,
-                                 st->radiance, st->pixels, st->env, NULL, NULL};
+                                 st->radiance, st->pixels, st->env, st->traced_tab, NULL, NULL};
+    lu_result rt = update_traced(st, err);
+    if (rt != LU_OK) return rt;
     double t0 = lu_time_seconds();
     lu_parallel_for(c->height, 1, pixel_rows, st, NULL);
     double t1 = lu_time_seconds();
@@ -386,11 +544,13 @@ static lu_result ddod_render(void *state, const lu_scene *scene, lu_image *out, 
     P.tile = TILE;
     P.tiles_x = st->bins.tiles_x;
     P.env = st->env_on;
+    P.traced = st->traced;
     st->P = P;
     double t3 = t2;
     if (st->backend == LU_BACKEND_GPU) {
         lu_ddod_frame f = {c->width, c->height, st->bins.tiles_y, P, st->set.count, st->set.samples, st->sh,
-                           st->pixels, st->bins.start, st->bins.list, (size_t)st->bins.entries, st->env, 1u};
+                           st->pixels, st->bins.start, st->bins.list, (size_t)st->bins.entries, st->env, 1u,
+                           st->traced_tab, st->nl, st->tab_version};
         r = lu_ddod_gpu_render(st->gpu, scene, &f, out, err);
         if (r != LU_OK) return r;
     } else {
@@ -404,6 +564,10 @@ static lu_result ddod_render(void *state, const lu_scene *scene, lu_image *out, 
     st->stats.ms_binning = 1e3 * (t2 - t1);
     st->stats.ms_samples = 1e3 * (t3 - t2);
     st->stats.ms_gather = 1e3 * (t4 - t3);
+    if (getenv("LUCENT_DDOD_DEBUG"))
+        fprintf(stderr, "ddod: frame ms: traced view %.1f, traced lights %.1f (%d), pixels %.1f, binning %.1f, samples %.1f, gather %.1f\n",
+                st->stats.ms_traced_view, st->stats.ms_traced_lights, st->nl, st->stats.ms_pixels, st->stats.ms_binning,
+                st->stats.ms_samples, st->stats.ms_gather);
     return LU_OK;
 }
 
@@ -411,6 +575,16 @@ bool lu_ddod_last_stats(const lu_renderer *r, lu_ddod_stats *out) {
     if (!r || strcmp(r->method->name, "ddod") != 0 || !r->state) return false;
     *out = ((const ddod_state *)r->state)->stats;
     return true;
+}
+
+const float *lu_ddod_traced_table(const lu_renderer *r, int *lights, int *count, const float **samples) {
+    if (!r || strcmp(r->method->name, "ddod") != 0 || !r->state) return NULL;
+    const ddod_state *st = r->state;
+    if (!st->traced || !st->traced_tab) return NULL;
+    *lights = st->tab_nl;
+    *count = st->set.count;
+    *samples = st->set.samples;
+    return st->traced_tab;
 }
 
 const lu_method lu_method_ddod = {

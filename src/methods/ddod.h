@@ -10,7 +10,9 @@
  *      the upstream value bilinear in the previous slice; voxels outside the
  *      boundary have density 0, voxels inside opaque objects block;
  *   2. first moment T(x) = sum_w exp(-sigma_t tau(x, w)) w (4 pi / n) and
- *      rho = |div T| by central differences;
+ *      rho = |div T| by central differences; T only steers the sample
+ *      density, so its sum runs over at most 32 directions (its own
+ *      spherical-Fibonacci set; the n directions are for step 4);
  *   3. weighted Poisson-disk sampling (dart throwing on a spatial hash grid)
  *      with base radius r = cbrt(V / (2 N_s)) and a local radius mapped
  *      linearly from 1/rho into [r/2, 2r], the radii scaled by a common factor
@@ -79,6 +81,17 @@ lu_result lu_ddod_cache_save(const char *path, uint64_t key, const lu_ddod_set *
  * what is wrong (magic, version, key, sizes, truncation, checksum). */
 lu_result lu_ddod_cache_load(const char *path, uint64_t key, lu_ddod_set *s, lu_error *err);
 
+/* ---- attenuation along one ray (precompute step 4 and the traced light term) ---- */
+/* Density integral (not yet times sigma_t) of b + t w over [t0, t1]. */
+typedef float (*lu_ddod_span_fn)(void *user, lu_vec3 b, lu_vec3 w, float t0, float t1);
+/* From b inside a medium's boundary along unit w over (0, tmax) (tmax >= 1e29:
+ * unbounded): *tau = the sum of span() over the parts inside the boundary
+ * (INFINITY when an opaque object blocks), *ft = the product of the
+ * dielectric F_t (index eta) at every boundary crossing. psi^F along w is
+ * then exp(-sigma_t tau) ft. False when the ray query ran out of memory. */
+bool lu_ddod_ray(const lu_accel *boundary, const lu_accel *opaque, float eta, lu_vec3 b, lu_vec3 w, float tmax,
+                 lu_ddod_span_fn span, void *user, float *tau, float *ft);
+
 /* ---- pieces (tests) ---- */
 /* n near-uniform unit directions (spherical Fibonacci); the quadrature
  * weight of each is 4 pi / n. */
@@ -113,6 +126,9 @@ typedef struct lu_ddod_frame {
     size_t list_count;
     const float *env_sh;       /* bands^2 rgb triples (when env) */
     unsigned set_version;      /* changes when samples / sh change (GPU re-uploads) */
+    const float *traced;       /* P.traced != 0: count * (1 + lights) * 4 floats (kernels/lu_ddod.h) */
+    int lights;                /* kernel lights (environment lights excluded) */
+    unsigned traced_version;   /* changes when the traced table is recomputed (GPU re-uploads) */
 } lu_ddod_frame;
 
 typedef struct lu_ddod_gpu lu_ddod_gpu;
@@ -127,8 +143,16 @@ typedef struct lu_ddod_stats {
     int samples;
     long long list_entries;
     double ms_pixels, ms_samples, ms_binning, ms_gather;
+    double ms_traced_view;     /* traced psi towards the camera this frame (0: the camera did not move) */
+    double ms_traced_lights;   /* traced psi^F towards the lights this frame (0: no light moved) */
+    int traced_view_updates, traced_light_updates;  /* recomputations of the traced table so far */
     lu_ddod_timing precompute;
 } lu_ddod_stats;
 bool lu_ddod_last_stats(const lu_renderer *r, lu_ddod_stats *out);
+/* The traced table of a ddod renderer's last frame: per sample 1 + *lights
+ * entries of 4 floats (psi towards the camera, then psi^F towards each
+ * kernel light; kernels/lu_ddod.h), the *count samples' records in
+ * *samples. NULL when the renderer traces nothing. */
+const float *lu_ddod_traced_table(const lu_renderer *r, int *lights, int *count, const float **samples);
 
 #endif

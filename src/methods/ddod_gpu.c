@@ -1,22 +1,22 @@
 /* The ddod method's GPU passes (see ddod.h): the shared GPU scene plus this
  * method's buffers at LU_SCENE_BINDING_FREE and above; samples and SH are
- * uploaded once per sample set, the frame's pixel records and tile lists
- * every frame. */
+ * uploaded once per sample set, the traced table when the camera or a
+ * light moves, the frame's pixel records and tile lists every frame. */
 #include <stdlib.h>
 
 #include "backends/gpu.h"
 #include "methods/ddod.h"
 #include "methods/gpu_scene.h"
 
-enum { B_SAMPLES, B_SH, B_RADIANCE, B_PIXELS, B_TILE_START, B_TILE_LIST, B_ENV, B_OUT, B_COUNT };
+enum { B_SAMPLES, B_SH, B_RADIANCE, B_PIXELS, B_TILE_START, B_TILE_LIST, B_ENV, B_OUT, B_TRACED, B_COUNT };
 
 struct lu_ddod_gpu {
     lu_gpu_context *ctx;
     lu_gpu_program *pass1, *pass2;
     lu_gpu_scene *scene;
     lu_gpu_buffer *buf[B_COUNT];
-    unsigned set_version;
-    bool set_uploaded;
+    unsigned set_version, traced_version;
+    bool set_uploaded, traced_uploaded;
     bool software;             /* llvmpipe: loop-iteration cap applies */
 };
 
@@ -59,6 +59,7 @@ static void set_uniforms(lu_gpu_program *p, const lu_ddod_frame *f) {
     lu_gpu_uniform_int(p, "u_tile", f->P.tile);
     lu_gpu_uniform_int(p, "u_tiles_x", f->P.tiles_x);
     lu_gpu_uniform_int(p, "u_env", f->P.env);
+    lu_gpu_uniform_int(p, "u_traced", f->P.traced);
     lu_gpu_uniform_int(p, "u_count", f->count);
 }
 
@@ -103,6 +104,14 @@ lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_ddo
         r = lu_gpu_buffer_put(g->ctx, &g->buf[B_ENV], f->P.env ? f->env_sh : NULL,
                               f->P.env ? (size_t)f->P.bands * f->P.bands * 3 * sizeof(float) : 0, b0 + B_ENV, err);
     if (r == LU_OK) r = lu_gpu_buffer_put(g->ctx, &g->buf[B_OUT], NULL, pixels * 3 * sizeof(float), b0 + B_OUT, err);
+    /* The traced table changes only when the camera or a light moves (ddod.c). */
+    if (r == LU_OK) {
+        bool keep = g->traced_uploaded && g->traced_version == f->traced_version;
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_TRACED], keep ? NULL : f->traced,
+                              f->P.traced ? n * (size_t)(f->lights + 1) * 4 * sizeof(float) : 0, b0 + B_TRACED, err);
+        g->traced_uploaded = r == LU_OK && f->P.traced;
+        g->traced_version = f->traced_version;
+    }
     if (r != LU_OK) return r;
     set_uniforms(g->pass1, f);
     set_uniforms(g->pass2, f);

@@ -1,6 +1,6 @@
 /* ddod.comp — the ddod method on the GPU, both passes of kernels/lu_ddod.h
  * over the shared GPU scene (lights, media records) and the buffers the CPU
- * built (samples, SH, pixel records, tile lists):
+ * built (samples, SH, pixel records, tile lists, the traced table):
  *   LU_DDOD_PASS 1: one invocation per sample, its radiance factor f_i;
  *   LU_DDOD_PASS 2: one work group per 16 x 16 tile, one invocation per
  *   pixel, the tile's Gaussians in list order (the CPU's order). */
@@ -21,6 +21,7 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 4) readonly buffer TileStart { 
 layout(std430, binding = LU_SCENE_BINDING_FREE + 5) readonly buffer TileList { int dd_tile_list[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 6) readonly buffer Env { float dd_env[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 7) writeonly buffer Out { float dd_out[]; };
+layout(std430, binding = LU_SCENE_BINDING_FREE + 8) readonly buffer Traced { float dd_traced[]; };
 
 uniform int u_bands;
 uniform int u_channels;
@@ -29,6 +30,7 @@ uniform int u_normalize;
 uniform int u_tile;
 uniform int u_tiles_x;
 uniform int u_env;
+uniform int u_traced;
 uniform int u_count;
 
 float lu_k_ddod_sample_f(LU_CTX_PARAM, int i, int k) { return dd_samples[i * LU_K_DDOD_SAMPLE_FLOATS + k]; }
@@ -38,6 +40,7 @@ float lu_k_ddod_pixel_f(LU_CTX_PARAM, int pixel, int k) { return dd_pixels[pixel
 int lu_k_ddod_tile_start(LU_CTX_PARAM, int tile) { return dd_tile_start[tile]; }
 int lu_k_ddod_tile_item(LU_CTX_PARAM, int k) { return dd_tile_list[k]; }
 vec3 lu_k_ddod_env_coeff(LU_CTX_PARAM, int k) { return vec3(dd_env[3 * k], dd_env[3 * k + 1], dd_env[3 * k + 2]); }
+vec3 lu_k_ddod_traced(LU_CTX_PARAM, int k) { return vec3(dd_traced[4 * k], dd_traced[4 * k + 1], dd_traced[4 * k + 2]); }
 
 #include "../kernels/lu_ddod.h"
 
@@ -50,7 +53,7 @@ void main() {
     P.tile = u_tile;
     P.tiles_x = u_tiles_x;
     P.env = u_env;
-    P.pad = 0;
+    P.traced = u_traced;
 #if LU_DDOD_PASS == 1
     int i = int(gl_GlobalInvocationID.x);
     if (i >= u_count) return;
