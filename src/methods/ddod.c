@@ -467,12 +467,7 @@ static void sample_range(void *ctx, int64_t begin, int64_t end, int thread) {
     ddod_state *st = ctx;
     lu_vec3 cam = st->scene->camera.position;
     for (int64_t i = begin; i < end; i++) {
-        lu_vec3 f = lu_k_ddod_sample_radiance(&st->kctx, st->P, (int)i, cam);
-        float *r = st->radiance + 4 * (size_t)i;
-        r[0] = f.x;
-        r[1] = f.y;
-        r[2] = f.z;
-        r[3] = 0.0f;
+        put4(st->radiance + 4 * (size_t)i, lu_k_ddod_sample_radiance(&st->kctx, st->P, (int)i, cam));
     }
 }
 
