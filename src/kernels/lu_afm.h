@@ -80,24 +80,12 @@ LU_TYPEDEF(lu_k_afm_params)
 
 /* One term of the cosine series by the Chebyshev recurrence
  * cos((k+1)a) = 2 cos(a) cos(ka) - cos((k-1)a) (one cosine per sample):
- * the build adds f cos(ka) to acc[k], the lookups add c_k cos(ka) to f/g.
+ * the build adds f cos(ka) to acc[k] (the lookup's terms: LU_K_AFM_T1).
  * Loops over k run these four at a time: llvmpipe stops a shader
  * invocation's loops after 65535 iterations in total, which a 500-step
  * march with two lights and 16 coefficients would otherwise pass. */
 #define LU_K_AFM_ACC_TERM(k) \
     acc[k] = lu_v3_madd(acc[k], f, cur); \
-    next = 2.0f * c1 * cur - prev; \
-    prev = cur; \
-    cur = next;
-#define LU_K_AFM_TERM3(k) \
-    f = lu_v3_madd(f, lu_v3(lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + 3 * (k)), \
-                            lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + 3 * (k) + 1), \
-                            lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + 3 * (k) + 2)), cur); \
-    next = 2.0f * c1 * cur - prev; \
-    prev = cur; \
-    cur = next;
-#define LU_K_AFM_TERM1(k) \
-    g += lu_k_afm_fetch(LU_CTX, base, LU_K_AFM_HEADER + (k)) * cur; \
     next = 2.0f * c1 * cur - prev; \
     prev = cur; \
     cur = next;
@@ -212,41 +200,74 @@ LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview 
 #ifndef LU_K_AFM_MAP_ONLY
 /* ---- lookup ---- */
 
-/* Transmittance stored in `texel` at depth `depth` along its light ray. */
-LU_FN vec3 lu_k_afm_texel_eval(LU_CTX_PARAM, lu_k_afm_params P, int texel, float depth) {
-    int base = texel * lu_k_afm_stride(P);
+/* The lookup evaluates the 4 texels of a bilinear footprint together: the
+ * series of one texel is a chain of dependent multiply-adds (the Chebyshev
+ * recurrence and the sum), so four of them interleaved in one loop run in
+ * about the time of one (measured: docs/afm.md, "Speed"). Each texel's
+ * arithmetic is the one a texel evaluated alone would do, in the same
+ * order: only the schedule changes, not the result. */
+
+/* Where depth falls on the light ray of the texel record at `base`:
+ * s = (depth - K_in) / (K_out - K_in) in (0, 1) where the series applies;
+ * -1 at or before K_in (transmittance 1), -2 at or after K_out (the tail). */
+LU_FN float lu_k_afm_depth_s(LU_CTX_PARAM, int base, float depth) {
     float k_in = lu_k_afm_fetch(LU_CTX, base, 0);
-    if (depth <= k_in) return lu_v3s(1.0f);
-    vec3 tail = lu_v3(lu_k_afm_fetch(LU_CTX, base, 2), lu_k_afm_fetch(LU_CTX, base, 3), lu_k_afm_fetch(LU_CTX, base, 4));
+    if (depth <= k_in) return -1.0f;
     float k_out = lu_k_afm_fetch(LU_CTX, base, 1);
-    if (depth >= k_out) return tail;
-    float s = (depth - k_in) / (k_out - k_in);
-    float c1 = lu_cos(LU_K_PI * s);
-    float prev = 1.0f, cur = c1, next = 0.0f;
-    vec3 f;
-    if (P.channels == 3) {
-        f = lu_v3(lu_k_afm_fetch(LU_CTX, base, 6), lu_k_afm_fetch(LU_CTX, base, 7), lu_k_afm_fetch(LU_CTX, base, 8));
-        int k = 1;
-        for (; k + 3 < P.coefs; k += 4) {
-            LU_K_AFM_TERM3(k) LU_K_AFM_TERM3(k + 1) LU_K_AFM_TERM3(k + 2) LU_K_AFM_TERM3(k + 3)
-        }
-        for (; k < P.coefs; k++) {
-            LU_K_AFM_TERM3(k)
-        }
-    } else {
-        float g = lu_k_afm_fetch(LU_CTX, base, 6);
-        int k = 1;
-        for (; k + 3 < P.coefs; k += 4) {
-            LU_K_AFM_TERM1(k) LU_K_AFM_TERM1(k + 1) LU_K_AFM_TERM1(k + 2) LU_K_AFM_TERM1(k + 3)
-        }
-        for (; k < P.coefs; k++) {
-            LU_K_AFM_TERM1(k)
-        }
-        f = lu_v3s(g);
-    }
-    /* Ringing of the truncated series: clamp into [tail, 1]. */
+    if (depth >= k_out) return -2.0f;
+    return (depth - k_in) / (k_out - k_in);
+}
+
+/* cos(pi s) for s in [0, 1] as sin(x), x = pi (1/2 - s) in [-pi/2, pi/2],
+ * by its Taylor polynomial to x^13: the remainder is below
+ * (pi/2)^15 / 15! = 7e-10, so the result is cos to float rounding (~1e-7),
+ * inline, without libm's range reduction (cosf was ~5 % of an afm frame). */
+LU_FN float lu_k_afm_cos_pi(float s) {
+    float x = LU_K_PI * (0.5f - s), x2 = x * x;
+    float p = 1.0f / 6227020800.0f;
+    p = p * x2 - 1.0f / 39916800.0f;
+    p = p * x2 + 1.0f / 362880.0f;
+    p = p * x2 - 1.0f / 5040.0f;
+    p = p * x2 + 1.0f / 120.0f;
+    p = p * x2 - 1.0f / 6.0f;
+    return x + x * x2 * p;
+}
+
+/* 2 cos(pi s), the Chebyshev recurrence's factor, for s from lu_k_afm_depth_s
+ * (0 where no series is needed: the texel's loop then runs on zeros). */
+LU_FN float lu_k_afm_rec_factor(float s) { return s >= 0.0f ? 2.0f * lu_k_afm_cos_pi(s) : 0.0f; }
+
+/* The texel's transmittance from its summed series f: 1 before K_in, the
+ * tail after K_out, else f clamped into [tail, 1] (truncation ringing cannot
+ * leave the range a transmittance along that ray can take). */
+LU_FN vec3 lu_k_afm_texel_value(LU_CTX_PARAM, int base, float s, vec3 f) {
+    if (s == -1.0f) return lu_v3s(1.0f);
+    vec3 tail = lu_v3(lu_k_afm_fetch(LU_CTX, base, 2), lu_k_afm_fetch(LU_CTX, base, 3), lu_k_afm_fetch(LU_CTX, base, 4));
+    if (s < 0.0f) return tail;
     return lu_v3(lu_clamp(f.x, tail.x, 1.0f), lu_clamp(f.y, tail.y, 1.0f), lu_clamp(f.z, tail.z, 1.0f));
 }
+
+/* One term k of one texel's series (grey: g; coloured: r, gg, bb) and its
+ * recurrence step cos((k+1)a) = 2 cos(a) cos(ka) - cos((k-1)a), m = 2 cos(a). */
+#define LU_K_AFM_REC(cur, prev, m) \
+    nx = m * cur - prev; \
+    prev = cur; \
+    cur = nx;
+#define LU_K_AFM_T1(g, b, cur, prev, m, k) \
+    g += lu_k_afm_fetch(LU_CTX, b, LU_K_AFM_HEADER + (k)) * cur; \
+    LU_K_AFM_REC(cur, prev, m)
+#define LU_K_AFM_T3(r, gg, bb, b, cur, prev, m, k) \
+    r += lu_k_afm_fetch(LU_CTX, b, LU_K_AFM_HEADER + 3 * (k)) * cur; \
+    gg += lu_k_afm_fetch(LU_CTX, b, LU_K_AFM_HEADER + 3 * (k) + 1) * cur; \
+    bb += lu_k_afm_fetch(LU_CTX, b, LU_K_AFM_HEADER + 3 * (k) + 2) * cur; \
+    LU_K_AFM_REC(cur, prev, m)
+/* Term k of all four texels. */
+#define LU_K_AFM_T1X4(k) \
+    LU_K_AFM_T1(g0, b0, cur0, prev0, m0, k) LU_K_AFM_T1(g1, b1, cur1, prev1, m1, k) \
+    LU_K_AFM_T1(g2, b2, cur2, prev2, m2, k) LU_K_AFM_T1(g3, b3, cur3, prev3, m3, k)
+#define LU_K_AFM_T3X4(k) \
+    LU_K_AFM_T3(r0, g0, e0, b0, cur0, prev0, m0, k) LU_K_AFM_T3(r1, g1, e1, b1, cur1, prev1, m1, k) \
+    LU_K_AFM_T3(r2, g2, e2, b2, cur2, prev2, m2, k) LU_K_AFM_T3(r3, g3, e3, b3, cur3, prev3, m3, k)
 
 /* Transmittance from light l to x, bilinear over the 4 nearest texels. */
 LU_FN vec3 lu_k_afm_transmittance(LU_CTX_PARAM, lu_k_afm_params P, int l, vec3 x) {
@@ -265,11 +286,58 @@ LU_FN vec3 lu_k_afm_transmittance(LU_CTX_PARAM, lu_k_afm_params P, int l, vec3 x
     float hi = lu_float(P.res - 1);
     int xa = lu_int(lu_clamp(x0, 0.0f, hi)), xb = lu_int(lu_clamp(x0 + 1.0f, 0.0f, hi));
     int ya = view_base + P.res * lu_int(lu_clamp(y0, 0.0f, hi)), yb = view_base + P.res * lu_int(lu_clamp(y0 + 1.0f, 0.0f, hi));
-    /* Written out, not looped: see LU_K_AFM_TERM1. */
-    vec3 T = lu_v3_scale(lu_k_afm_texel_eval(LU_CTX, P, ya + xa, uvd.z), (1.0f - ax) * (1.0f - ay));
-    if (ax > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, ya + xb, uvd.z), ax * (1.0f - ay));
-    if (ay > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, yb + xa, uvd.z), (1.0f - ax) * ay);
-    if (ax > 0.0f && ay > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_eval(LU_CTX, P, yb + xb, uvd.z), ax * ay);
+    int stride = lu_k_afm_stride(P);
+    /* Texels (xa, ya), (xb, ya), (xa, yb), (xb, yb); a texel of weight 0
+     * (ax or ay exactly 0) is evaluated but not added. */
+    int b0 = (ya + xa) * stride, b1 = (ya + xb) * stride, b2 = (yb + xa) * stride, b3 = (yb + xb) * stride;
+    float s0 = lu_k_afm_depth_s(LU_CTX, b0, uvd.z), s1 = lu_k_afm_depth_s(LU_CTX, b1, uvd.z);
+    float s2 = lu_k_afm_depth_s(LU_CTX, b2, uvd.z), s3 = lu_k_afm_depth_s(LU_CTX, b3, uvd.z);
+    vec3 f0 = lu_v3s(0.0f), f1 = lu_v3s(0.0f), f2 = lu_v3s(0.0f), f3 = lu_v3s(0.0f);
+    if (lu_max(lu_max(s0, s1), lu_max(s2, s3)) >= 0.0f) {
+        float m0 = lu_k_afm_rec_factor(s0), m1 = lu_k_afm_rec_factor(s1);
+        float m2 = lu_k_afm_rec_factor(s2), m3 = lu_k_afm_rec_factor(s3);
+        float prev0 = 1.0f, prev1 = 1.0f, prev2 = 1.0f, prev3 = 1.0f;
+        float cur0 = 0.5f * m0, cur1 = 0.5f * m1, cur2 = 0.5f * m2, cur3 = 0.5f * m3;
+        float nx = 0.0f;
+        /* Loops run four terms per iteration: llvmpipe stops a shader
+         * invocation's loops after 65535 iterations in total, which a
+         * 500-step march with two lights would otherwise pass. */
+        if (P.channels == 3) {
+            float r0 = lu_k_afm_fetch(LU_CTX, b0, 6), g0 = lu_k_afm_fetch(LU_CTX, b0, 7), e0 = lu_k_afm_fetch(LU_CTX, b0, 8);
+            float r1 = lu_k_afm_fetch(LU_CTX, b1, 6), g1 = lu_k_afm_fetch(LU_CTX, b1, 7), e1 = lu_k_afm_fetch(LU_CTX, b1, 8);
+            float r2 = lu_k_afm_fetch(LU_CTX, b2, 6), g2 = lu_k_afm_fetch(LU_CTX, b2, 7), e2 = lu_k_afm_fetch(LU_CTX, b2, 8);
+            float r3 = lu_k_afm_fetch(LU_CTX, b3, 6), g3 = lu_k_afm_fetch(LU_CTX, b3, 7), e3 = lu_k_afm_fetch(LU_CTX, b3, 8);
+            int k = 1;
+            for (; k + 3 < P.coefs; k += 4) {
+                LU_K_AFM_T3X4(k) LU_K_AFM_T3X4(k + 1) LU_K_AFM_T3X4(k + 2) LU_K_AFM_T3X4(k + 3)
+            }
+            for (; k < P.coefs; k++) {
+                LU_K_AFM_T3X4(k)
+            }
+            f0 = lu_v3(r0, g0, e0);
+            f1 = lu_v3(r1, g1, e1);
+            f2 = lu_v3(r2, g2, e2);
+            f3 = lu_v3(r3, g3, e3);
+        } else {
+            float g0 = lu_k_afm_fetch(LU_CTX, b0, 6), g1 = lu_k_afm_fetch(LU_CTX, b1, 6);
+            float g2 = lu_k_afm_fetch(LU_CTX, b2, 6), g3 = lu_k_afm_fetch(LU_CTX, b3, 6);
+            int k = 1;
+            for (; k + 3 < P.coefs; k += 4) {
+                LU_K_AFM_T1X4(k) LU_K_AFM_T1X4(k + 1) LU_K_AFM_T1X4(k + 2) LU_K_AFM_T1X4(k + 3)
+            }
+            for (; k < P.coefs; k++) {
+                LU_K_AFM_T1X4(k)
+            }
+            f0 = lu_v3s(g0);
+            f1 = lu_v3s(g1);
+            f2 = lu_v3s(g2);
+            f3 = lu_v3s(g3);
+        }
+    }
+    vec3 T = lu_v3_scale(lu_k_afm_texel_value(LU_CTX, b0, s0, f0), (1.0f - ax) * (1.0f - ay));
+    if (ax > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_value(LU_CTX, b1, s1, f1), ax * (1.0f - ay));
+    if (ay > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_value(LU_CTX, b2, s2, f2), (1.0f - ax) * ay);
+    if (ax > 0.0f && ay > 0.0f) T = lu_v3_madd(T, lu_k_afm_texel_value(LU_CTX, b3, s3, f3), ax * ay);
     return T;
 }
 

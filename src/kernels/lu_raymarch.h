@@ -33,6 +33,7 @@
 #include "lu_lightview.h"
 #include "lu_march.h"
 #include "lu_medium.h"
+#include "lu_near_light.h"
 #include "lu_optics.h"
 #include "lu_shadowmap.h"
 
@@ -140,29 +141,6 @@ LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
     return lu_k_shadow_lookup(LU_CTX, vw, first + face, res, x, n);
 }
 
-/* A point or spot light at p and the march step x + s d, s in [sa, sb]:
- * the factor that turns the light's 1/|p - x|^2 at the sample x into the
- * step's mean of 1/|p - x - s d|^2,
- *   (atan((sb - tc)/b) - atan((sa - tc)/b)) / (b (sb - sa)),
- * tc the closest approach to p and b the line's distance to p. A fixed step
- * passing a light inside a medium otherwise hits or misses the 1/d^2 peak
- * (smoke_glow: one pixel 50x too bright, 15 % rel-L2 at 512x512). The
- * difference of the two atans is taken as one atan2 (both scaled by b^2),
- * exact in float at every distance, so the factor is applied to every step
- * rather than only near the light: it costs a sqrt and an atan2 per light
- * and step beside the shadow ray's optical depth, has no cutoff to cause a
- * seam, and away from the light it is 1 + O((h/d)^2) at the step's midpoint.
- * b is kept >= 1e-3 of the step so a light exactly on the ray (whose mean
- * diverges) gives a large finite value. */
-LU_FN float lu_k_rm_near_light(vec3 p, vec3 x, vec3 d, float sa, float sb) {
-    vec3 op = lu_v3_sub(p, x);
-    float d2 = lu_v3_dot(op, op);
-    float tc = lu_v3_dot(op, d);
-    float h = sb - sa;
-    float b = lu_max(lu_sqrt(lu_max(d2 - tc * tc, 0.0f)), 1e-3f * h);
-    return lu_atan2(b * h, b * b + (sb - tc) * (sa - tc)) * d2 / (b * h);
-}
-
 /* In-scattered radiance per unit length at x towards -d (before the
  * step's extinction): sum over media and lights of sigma_s D phase E T V,
  * the step covering x + s d for s in [sa, sb] (point and spot lights take
@@ -266,10 +244,14 @@ LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
          * ray's transmittance is exp of the summed optical depth, not a
          * product of per-step factors, for the same reason. */
         vec3 xs = lu_v3_scale(sig_t, h);
-        vec3 w = lu_v3(lu_k_rm_step_weight(xs.x), lu_k_rm_step_weight(xs.y), lu_k_rm_step_weight(xs.z));
+        /* Grey extinction (equal channels, every bundled scene but one):
+         * one weight and one exp instead of three equal ones. */
+        bool grey = xs.y == xs.x && xs.z == xs.x;
+        float wx = lu_k_rm_step_weight(xs.x);
+        vec3 w = grey ? lu_v3s(wx) : lu_v3(wx, lu_k_rm_step_weight(xs.y), lu_k_rm_step_weight(xs.z));
         L = lu_v3_add(L, lu_v3_mul(lu_v3_mul(T, S), lu_v3_scale(w, h)));
         tau = lu_v3_add(tau, xs);
-        T = lu_v3_exp(lu_v3_neg(tau));
+        T = tau.y == tau.x && tau.z == tau.x ? lu_v3s(lu_exp(-tau.x)) : lu_v3_exp(lu_v3_neg(tau));
     }
     LU_DEREF(L_io) = L;
     LU_DEREF(tau_io) = tau;

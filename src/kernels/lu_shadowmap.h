@@ -46,8 +46,12 @@ LU_FN float lu_k_shadow_lookup(LU_CTX_PARAM, lu_k_lightview vw, int map, int res
     if (!lu_k_lightview_inside(uvd0)) return 1.0f;
     float depth = vw.ortho != 0 ? 1.0f : uvd0.z;
     float texel = 2.0f * lu_max(vw.extent_u, vw.extent_v) * depth / lu_float(res);
-    vec3 uvd = lu_k_lightview_project(vw, lu_v3_madd(x, n, 1.5f * texel));
-    if (uvd.z <= 0.0f) uvd = uvd0;
+    /* A point in a medium (n = 0) would project to uvd0 again: skip that. */
+    vec3 uvd = uvd0;
+    if (lu_v3_dot(n, n) > 0.0f) {
+        uvd = lu_k_lightview_project(vw, lu_v3_madd(x, n, 1.5f * texel));
+        if (uvd.z <= 0.0f) uvd = uvd0;
+    }
     uvd.x = lu_clamp(uvd.x, 0.0f, 1.0f);
     uvd.y = lu_clamp(uvd.y, 0.0f, 1.0f);
     return lu_k_shadow_visibility(LU_CTX, map, res, uvd, 2.0f * texel);

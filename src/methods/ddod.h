@@ -10,7 +10,9 @@
  *      the upstream value bilinear in the previous slice; voxels outside the
  *      boundary have density 0, voxels inside opaque objects block;
  *   2. first moment T(x) = sum_w exp(-sigma_t tau(x, w)) w (4 pi / n) and
- *      rho = |div T| by central differences;
+ *      rho = |div T| by central differences; T only steers the sample
+ *      density, so its sum runs over at most 32 directions (its own
+ *      spherical-Fibonacci set; the n directions are for step 4);
  *   3. weighted Poisson-disk sampling (dart throwing on a spatial hash grid)
  *      with base radius r = cbrt(V / (2 N_s)) and a local radius mapped
  *      linearly from 1/rho into [r/2, 2r], the radii scaled by a common factor

@@ -15,10 +15,12 @@
 #include "methods/methods.h"
 #include "methods/opaque_accel.h"
 
-#define DDOD_CACHE_VERSION 4
+#define DDOD_CACHE_VERSION 5
 #define DDOD_BLOCK_DENSITY 1.0e4f   /* per world unit: opaque voxels stop every ray */
 #define DDOD_FIX 1048576.0f         /* 2^20: fixed point of the first-moment sums */
 #define DDOD_MAX_CROSSINGS 64
+/* Directions of the first moment T (at most; fewer when n is smaller). */
+#define DDOD_MOMENT_DIRS 32
 
 /* Processor time of the process (all threads), for the timing breakdown. */
 static double cpu_seconds(void) {
@@ -38,13 +40,24 @@ void lu_ddod_directions(int n, lu_vec3 *out) {
     }
 }
 
+/* acc[k] += sum_j f_j Y[j][k] over n rows of a basis table Y (nc per row). */
+static void sh_accumulate(int n, const float *Y, int nc, const float *f, double *acc) {
+    for (int j = 0; j < n; j++)
+        for (int k = 0; k < nc; k++) acc[k] += (double)f[j] * Y[(size_t)j * nc + k];
+}
+
 void lu_ddod_sh_project(int n, const lu_vec3 *dirs, const float *f, int bands, float *c) {
     int nc = bands * bands;
     double acc[LU_SH_MAX_COEFFS] = {0};
-    float y[LU_SH_MAX_COEFFS];
-    for (int j = 0; j < n; j++) {
-        lu_k_sh_eval(dirs[j], bands, y);
-        for (int k = 0; k < nc; k++) acc[k] += (double)f[j] * y[k];
+    float Y[32 * LU_SH_MAX_COEFFS]; /* the basis at 32 directions at a time */
+    for (int j0 = 0; j0 < n; j0 += 32) {
+        int m = n - j0 < 32 ? n - j0 : 32;
+        float y[LU_SH_MAX_COEFFS];
+        for (int j = 0; j < m; j++) {
+            lu_k_sh_eval(dirs[j0 + j], bands, y);
+            memcpy(Y + (size_t)j * nc, y, (size_t)nc * sizeof *y);
+        }
+        sh_accumulate(m, Y, nc, f + j0, acc);
     }
     for (int k = 0; k < nc; k++) c[k] = (float)(acc[k] * 4.0 * M_PI / n);
 }
@@ -287,7 +300,7 @@ static size_t max_slice(const vgrid *g) {
     return slice;
 }
 
-/* T (3 floats per voxel, native layout) from the sweeps; sums are integers,
+/* T (3 arrays of one component each, native layout) from the sweeps; sums are integers,
  * so the result does not depend on how directions meet threads. */
 static lu_result first_moment(const vgrid *g, const lu_vec3 *dirs, int ndirs, float sigma_t, float *T, lu_error *err) {
     int groups = lu_thread_count();
@@ -313,8 +326,8 @@ static lu_result first_moment(const vgrid *g, const lu_vec3 *dirs, int ndirs, fl
                             size_t p = pidx(g, a, v);
                             for (int comp = 0; comp < 3; comp++) s[comp] += j.acc[(gi * 3 + a) * 3 + comp][p];
                         }
-                    float *t = T + 3 * vidx(g, v[0], v[1], v[2]);
-                    for (int comp = 0; comp < 3; comp++) t[comp] = (float)(s[comp] * wq);
+                    size_t i = vidx(g, v[0], v[1], v[2]);
+                    for (int comp = 0; comp < 3; comp++) T[comp * g->count + i] = (float)(s[comp] * wq);
                 }
     }
     for (int i = 0; j.acc && i < groups * 9; i++) free(j.acc[i]);
@@ -331,28 +344,100 @@ typedef struct pds_valid {
     void *user;
 } pds_valid;
 
-static lu_result poisson_impl(const lu_ddod_field *f, float scale, int candidates, uint32_t seed, const pds_valid *valid,
-                              float **points_out, float **radii_out, int *count_out, lu_error *err) {
-    *points_out = NULL;
-    *radii_out = NULL;
-    *count_out = 0;
+/* The darts of one sampling run. They do not depend on the radius scale,
+ * so the passes that search for the scale share them: voxel v drawn with
+ * probability ~ 1 / radius^3 (the density a Poisson-disk set of local radius
+ * r ends up with, so darts go where points can land), a uniform point in it. */
+typedef struct pds_darts {
+    int n;
+    float *p;              /* xyz per dart */
+    float *r;              /* the radius of its voxel (unscaled) */
+    signed char *valid;    /* cached pds_valid answer: 0 not asked yet, 1 yes, -1 no */
+    float rmax;            /* largest radius of the field */
+} pds_darts;
+
+static void pds_darts_free(pds_darts *d) {
+    free(d->p);
+    free(d->r);
+    free(d->valid);
+    memset(d, 0, sizeof *d);
+}
+
+typedef struct dart_key {
+    double u;
+    int i;
+} dart_key;
+
+static int cmp_dart_key(const void *a, const void *b) {
+    const dart_key *x = a, *y = b;
+    if (x->u != y->u) return x->u < y->u ? -1 : 1;
+    return (x->i > y->i) - (x->i < y->i);
+}
+
+/* Draws `candidates` darts. Each dart takes four numbers from the stream
+ * (the CDF position, then the offset in the voxel); the voxels are found by
+ * one walk of the CDF over the sorted positions instead of a binary search
+ * per dart (the CDF is larger than the caches). */
+static lu_result pds_draw(const lu_ddod_field *f, int candidates, uint32_t seed, pds_darts *d, lu_error *err) {
+    memset(d, 0, sizeof *d);
     size_t nv = (size_t)f->n[0] * f->n[1] * f->n[2];
     double *cdf = malloc((nv + 1) * sizeof *cdf);
     if (!cdf) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for sampling");
-    /* Candidates per voxel ~ 1 / r^3: the density a Poisson-disk set of
-     * local radius r ends up with, so darts go where points can land. */
-    float rmax = 0.0f;
     cdf[0] = 0.0;
     for (size_t v = 0; v < nv; v++) {
         float r = f->radius[v];
         cdf[v + 1] = cdf[v] + (r > 0.0f ? 1.0 / ((double)r * r * r) : 0.0);
-        rmax = r > rmax ? r : rmax;
+        d->rmax = r > d->rmax ? r : d->rmax;
     }
     if (!(cdf[nv] > 0.0) || candidates <= 0) {
         free(cdf);
         return LU_OK;
     }
-    rmax *= scale;
+    dart_key *key = malloc((size_t)candidates * sizeof *key);
+    float *off = malloc((size_t)candidates * 3 * sizeof *off);
+    d->p = malloc((size_t)candidates * 3 * sizeof *d->p);
+    d->r = malloc((size_t)candidates * sizeof *d->r);
+    d->valid = calloc((size_t)candidates, sizeof *d->valid);
+    if (!key || !off || !d->p || !d->r || !d->valid) {
+        free(cdf), free(key), free(off);
+        pds_darts_free(d);
+        return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %d sampling candidates", candidates);
+    }
+    uint64_t rs = 0x5eedull ^ ((uint64_t)seed << 32);
+    for (int i = 0; i < candidates; i++) {
+        key[i].u = lu_rng_unit(&rs) * cdf[nv];
+        key[i].i = i;
+        for (int a = 0; a < 3; a++) off[3 * i + a] = (float)lu_rng_unit(&rs);
+    }
+    qsort(key, (size_t)candidates, sizeof *key, cmp_dart_key);
+    size_t v = 0; /* first v with cdf[v + 1] > u, for increasing u */
+    int n = 0;
+    for (int k = 0; k < candidates; k++) {
+        while (v + 1 < nv && !(cdf[v + 1] > key[k].u)) v++;
+        int i = key[k].i;
+        int vx = (int)(v % f->n[0]), vy = (int)((v / f->n[0]) % f->n[1]), vz = (int)(v / ((size_t)f->n[0] * f->n[1]));
+        d->p[3 * i] = f->lo.x + ((float)vx + off[3 * i]) * f->h;
+        d->p[3 * i + 1] = f->lo.y + ((float)vy + off[3 * i + 1]) * f->h;
+        d->p[3 * i + 2] = f->lo.z + ((float)vz + off[3 * i + 2]) * f->h;
+        d->r[i] = f->radius[v];
+        n++;
+    }
+    d->n = n;
+    free(cdf);
+    free(key);
+    free(off);
+    return LU_OK;
+}
+
+/* Dart throwing at radius scale `scale`: a dart is kept when no kept point q
+ * has |p - q| < max(r_p, r_q) and `valid` accepts it. */
+static lu_result pds_throw(const lu_ddod_field *f, pds_darts *d, float scale, const pds_valid *valid, float **points_out,
+                           float **radii_out, int *count_out, lu_error *err) {
+    *points_out = NULL;
+    *radii_out = NULL;
+    *count_out = 0;
+    if (d->n == 0) return LU_OK;
+    float rmax = d->rmax * scale;
     /* Spatial hash grid with cells of the largest radius: every conflict of
      * a point lies in its 27 neighbouring cells. */
     lu_vec3 ext = lu_v3((float)f->n[0] * f->h, (float)f->n[1] * f->h, (float)f->n[2] * f->h);
@@ -369,27 +454,23 @@ static lu_result poisson_impl(const lu_ddod_field *f, float scale, int candidate
     float *rad = malloc((size_t)cap * sizeof *rad);
     int *next = malloc((size_t)cap * sizeof *next);
     if (!head || !pts || !rad || !next) {
-        free(cdf), free(head), free(pts), free(rad), free(next);
+        free(head), free(pts), free(rad), free(next);
         return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for sampling");
     }
     for (size_t i = 0; i < ncell; i++) head[i] = -1;
-    uint64_t rs = 0x5eedull ^ ((uint64_t)seed << 32);
+    /* the dart's own cell first: most conflicts are there */
+    int order[27][3], no = 0;
+    for (int dz = -1; dz <= 1; dz++)
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                int k = dx == 0 && dy == 0 && dz == 0 ? 0 : ++no;
+                order[k][0] = dx, order[k][1] = dy, order[k][2] = dz;
+            }
     int count = 0;
-    for (int it = 0; it < candidates; it++) {
-        double u = lu_rng_unit(&rs) * cdf[nv];
-        size_t lo = 0, hi = nv;  /* first v with cdf[v + 1] > u */
-        while (lo < hi) {
-            size_t mid = (lo + hi) / 2;
-            if (cdf[mid + 1] > u) hi = mid;
-            else lo = mid + 1;
-        }
-        size_t v = lo < nv ? lo : nv - 1;
-        if (!(f->radius[v] > 0.0f)) continue;
-        int vx = (int)(v % f->n[0]), vy = (int)((v / f->n[0]) % f->n[1]), vz = (int)(v / ((size_t)f->n[0] * f->n[1]));
-        lu_vec3 p = lu_v3(f->lo.x + ((float)vx + (float)lu_rng_unit(&rs)) * f->h,
-                          f->lo.y + ((float)vy + (float)lu_rng_unit(&rs)) * f->h,
-                          f->lo.z + ((float)vz + (float)lu_rng_unit(&rs)) * f->h);
-        float rp = scale * f->radius[v];
+    for (int it = 0; it < d->n; it++) {
+        if (!(d->r[it] > 0.0f)) continue;
+        lu_vec3 p = lu_v3(d->p[3 * it], d->p[3 * it + 1], d->p[3 * it + 2]);
+        float rp = scale * d->r[it];
         int c[3];
         float pv[3] = {p.x - f->lo.x, p.y - f->lo.y, p.z - f->lo.z};
         for (int a = 0; a < 3; a++) {
@@ -397,21 +478,23 @@ static lu_result poisson_impl(const lu_ddod_field *f, float scale, int candidate
             c[a] = c[a] < 0 ? 0 : (c[a] >= cn[a] ? cn[a] - 1 : c[a]);
         }
         bool ok = true;
-        for (int dz = -1; dz <= 1 && ok; dz++)
-            for (int dy = -1; dy <= 1 && ok; dy++)
-                for (int dx = -1; dx <= 1 && ok; dx++) {
-                    int x = c[0] + dx, y = c[1] + dy, z = c[2] + dz;
-                    if (x < 0 || y < 0 || z < 0 || x >= cn[0] || y >= cn[1] || z >= cn[2]) continue;
-                    for (int q = head[((size_t)z * cn[1] + y) * cn[0] + x]; q >= 0; q = next[q]) {
-                        float ddx = pts[3 * q] - p.x, ddy = pts[3 * q + 1] - p.y, ddz = pts[3 * q + 2] - p.z;
-                        float m = rad[q] > rp ? rad[q] : rp;
-                        if (ddx * ddx + ddy * ddy + ddz * ddz < m * m) {
-                            ok = false;
-                            break;
-                        }
-                    }
+        for (int k = 0; k < 27 && ok; k++) {
+            int x = c[0] + order[k][0], y = c[1] + order[k][1], z = c[2] + order[k][2];
+            if (x < 0 || y < 0 || z < 0 || x >= cn[0] || y >= cn[1] || z >= cn[2]) continue;
+            for (int q = head[((size_t)z * cn[1] + y) * cn[0] + x]; q >= 0; q = next[q]) {
+                float ddx = pts[3 * q] - p.x, ddy = pts[3 * q + 1] - p.y, ddz = pts[3 * q + 2] - p.z;
+                float m = rad[q] > rp ? rad[q] : rp;
+                if (ddx * ddx + ddy * ddy + ddz * ddz < m * m) {
+                    ok = false;
+                    break;
                 }
-        if (!ok || (valid && !valid->fn(valid->user, p))) continue;
+            }
+        }
+        if (!ok) continue;
+        if (valid) {
+            if (d->valid[it] == 0) d->valid[it] = valid->fn(valid->user, p) ? 1 : -1;
+            if (d->valid[it] < 0) continue;
+        }
         if (count == cap) {
             cap *= 2;
             float *np = realloc(pts, (size_t)cap * 3 * sizeof *np);
@@ -420,7 +503,7 @@ static lu_result poisson_impl(const lu_ddod_field *f, float scale, int candidate
             if (nr) rad = nr;
             int *nn = nr ? realloc(next, (size_t)cap * sizeof *nn) : NULL;
             if (!nn) {
-                free(cdf), free(head), free(pts), free(rad), free(next);
+                free(head), free(pts), free(rad), free(next);
                 return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %d samples", cap);
             }
             next = nn;
@@ -434,7 +517,6 @@ static lu_result poisson_impl(const lu_ddod_field *f, float scale, int candidate
         head[ci] = count;
         count++;
     }
-    free(cdf);
     free(head);
     free(next);
     *points_out = pts;
@@ -445,7 +527,14 @@ static lu_result poisson_impl(const lu_ddod_field *f, float scale, int candidate
 
 lu_result lu_ddod_poisson(const lu_ddod_field *f, float scale, int candidates, uint32_t seed, float **points,
                           float **radii, int *count, lu_error *err) {
-    return poisson_impl(f, scale, candidates, seed, NULL, points, radii, count, err);
+    *points = NULL;
+    *radii = NULL;
+    *count = 0;
+    pds_darts d;
+    lu_result r = pds_draw(f, candidates, seed, &d, err);
+    if (r == LU_OK) r = pds_throw(f, &d, scale, NULL, points, radii, count, err);
+    pds_darts_free(&d);
+    return r;
 }
 
 /* ---- step 4: attenuation at the samples ---- */
@@ -578,7 +667,20 @@ typedef struct pou_job {
     int *nb;
     float *w;              /* gamma_j(b_i) / A_j: the Gaussian's shape, fixed during the fit */
     bool fill;             /* false: count into start[i + 1]; true: write nb and w */
+    float *S;              /* per sample: sum_j A_j gamma_j(b_i) */
 } pou_job;
+
+/* S_i of one Jacobi step (each i on its own: the split over threads does not
+ * change the sums). */
+static void pou_sums(void *ctx, int64_t begin, int64_t end, int thread) {
+    pou_job *j = ctx;
+    for (int64_t i = begin; i < end; i++) {
+        double sum = 0.0;
+        for (int64_t k = j->start[i]; k < j->start[i + 1]; k++)
+            sum += (double)j->rec[(size_t)j->nb[k] * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] * j->w[k];
+        j->S[i] = (float)sum;
+    }
+}
 
 /* Every sample j whose ball (3 s_j) holds b_i: counted, or written with its weight. */
 static void pou_neighbours(void *ctx, int64_t begin, int64_t end, int thread) {
@@ -665,13 +767,9 @@ static lu_result fit_partition(float *rec, int count, int iters, lu_error *err) 
     if (r == LU_OK) {
         j.fill = true;
         lu_parallel_for(count, 0, pou_neighbours, &j, NULL);
+        j.S = S;
         for (int it = 0; it < iters; it++) {
-            for (int i = 0; i < count; i++) {
-                double sum = 0.0;
-                for (int64_t k = j.start[i]; k < j.start[i + 1]; k++)
-                    sum += (double)rec[(size_t)j.nb[k] * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] * j.w[k];
-                S[i] = (float)sum;
-            }
+            lu_parallel_for(count, 0, pou_sums, &j, NULL);
             for (int i = 0; i < count; i++)
                 if (S[i] > 0.0f) rec[(size_t)i * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] /= powf(S[i], 0.7f);
         }
@@ -721,36 +819,113 @@ static bool sample_valid(void *user, lu_vec3 p) {
 }
 
 typedef struct sh_job {
-    const lu_vec3 *dirs;
+    const float *Y;        /* ndirs x bands^2: the basis at the directions, evaluated once */
     int ndirs, bands, channels, stride, count;
     lu_vec3 sigma_t;
     const float *tau, *ft;
     float *sh;
 } sh_job;
 
+/* Per sample: psi and psi^F at the directions, projected as lu_ddod_sh_project
+ * does (same sums in the same order) but from the shared basis table. */
 static void sh_samples(void *ctx, int64_t begin, int64_t end, int thread) {
     sh_job *j = ctx;
-    float *f = malloc((size_t)j->ndirs * sizeof *f);
+    float *f = malloc((size_t)j->ndirs * 2 * sizeof *f);
     if (!f) return;
+    float *fF = f + j->ndirs;
     int nc = j->bands * j->bands;
+    double scale = 4.0 * M_PI / j->ndirs;
     for (int64_t i = begin; i < end; i++) {
         const float *tau = j->tau + (size_t)i * j->ndirs, *ft = j->ft + (size_t)i * j->ndirs;
-        for (int set = 0; set < 2; set++)
-            for (int c = 0; c < j->channels; c++) {
-                float st = j->channels == 1 ? lu_v3_avg(j->sigma_t) : lu_v3_get(j->sigma_t, c);
-                for (int d = 0; d < j->ndirs; d++) {
-                    float e = isinf(tau[d]) ? 0.0f : expf(-st * tau[d]);
-                    f[d] = set == 0 ? e : e * ft[d];
-                }
-                lu_ddod_sh_project(j->ndirs, j->dirs, f, j->bands, j->sh + (size_t)i * j->stride + (size_t)(set * j->channels + c) * nc);
+        for (int c = 0; c < j->channels; c++) {
+            float st = j->channels == 1 ? lu_v3_avg(j->sigma_t) : lu_v3_get(j->sigma_t, c);
+            for (int d = 0; d < j->ndirs; d++) {
+                f[d] = isinf(tau[d]) ? 0.0f : expf(-st * tau[d]);
+                fF[d] = f[d] * ft[d];
             }
+            for (int set = 0; set < 2; set++) {
+                double acc[LU_SH_MAX_COEFFS] = {0};
+                sh_accumulate(j->ndirs, j->Y, nc, set == 0 ? f : fF, acc);
+                float *out = j->sh + (size_t)i * j->stride + (size_t)(set * j->channels + c) * nc;
+                for (int k = 0; k < nc; k++) out[k] = (float)(acc[k] * scale);
+            }
+        }
     }
     free(f);
 }
 
-static int cmp_float(const void *a, const void *b) {
-    float x = *(const float *)a, y = *(const float *)b;
+/* Spreads the low 10 bits of x to every third bit. */
+static uint32_t morton_spread(uint32_t x) {
+    x &= 0x3ff;
+    x = (x | (x << 16)) & 0x030000ff;
+    x = (x | (x << 8)) & 0x0300f00f;
+    x = (x | (x << 4)) & 0x030c30c3;
+    x = (x | (x << 2)) & 0x09249249;
+    return x;
+}
+
+static int cmp_u64(const void *a, const void *b) {
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
     return (x > y) - (x < y);
+}
+
+/* Reorders the samples along a Morton curve over box [lo, lo + ext]: dart
+ * throwing leaves them in random order, and every later stage (ray casts per
+ * direction, neighbour sums of the fit, the renderer's tiles) reads
+ * neighbours together. */
+static lu_result sort_samples(float *pts, float *rad, int count, lu_vec3 lo, lu_vec3 ext, lu_error *err) {
+    uint64_t *key = malloc((size_t)count * sizeof *key);
+    float *tmp = malloc((size_t)count * 4 * sizeof *tmp);
+    if (!key || !tmp) {
+        free(key), free(tmp);
+        return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory sorting %d samples", count);
+    }
+    float e = fmaxf(lu_v3_maxc(ext), 1e-30f);
+    for (int i = 0; i < count; i++) {
+        uint32_t m = 0;
+        for (int a = 0; a < 3; a++) {
+            float u = (pts[3 * i + a] - lu_v3_get(lo, a)) / e * 1024.0f;
+            uint32_t q = u <= 0.0f ? 0u : (u >= 1023.0f ? 1023u : (uint32_t)u);
+            m |= morton_spread(q) << a;
+        }
+        key[i] = (uint64_t)m << 32 | (uint32_t)i;
+    }
+    qsort(key, (size_t)count, sizeof *key, cmp_u64);
+    memcpy(tmp, pts, (size_t)count * 3 * sizeof *tmp);
+    memcpy(tmp + (size_t)count * 3, rad, (size_t)count * sizeof *tmp);
+    for (int k = 0; k < count; k++) {
+        int i = (int)(uint32_t)key[k];
+        memcpy(pts + 3 * (size_t)k, tmp + 3 * (size_t)i, 3 * sizeof *pts);
+        rad[k] = tmp[(size_t)count * 3 + i];
+    }
+    free(key);
+    free(tmp);
+    return LU_OK;
+}
+
+/* The k-th smallest of a[0 .. n) (0-based), which it partially reorders:
+ * afterwards a[0 .. k) holds values <= it (quickselect, Hoare partition). */
+static float select_kth(float *a, int n, int k) {
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        float pivot = a[lo + (hi - lo) / 2];
+        int i = lo, j = hi;
+        while (i <= j) {
+            while (a[i] < pivot) i++;
+            while (a[j] > pivot) j--;
+            if (i <= j) {
+                float t = a[i];
+                a[i] = a[j];
+                a[j] = t;
+                i++;
+                j--;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;
+    }
+    return a[k];
 }
 
 static bool grey(lu_vec3 v) { return v.x == v.y && v.y == v.z; }
@@ -769,11 +944,23 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
     int threads = lu_thread_count();
     lu_vec3 sigma_t = lu_v3_add(m->sigma_a, m->sigma_s);
 
-    /* 1 + 2: optical depth sweeps and the first moment */
+    /* 1 + 2: optical depth sweeps and the first moment. T only steers the
+     * sample density (through rho), and as an integral over the sphere it is
+     * smooth in the direction: it is summed over a spherical-Fibonacci set
+     * of min(n, DDOD_MOMENT_DIRS) directions, a quadrature of the same
+     * integral with fewer nodes (docs/ddod.md: the image error does not
+     * change against all n). */
     double t0 = lu_time_seconds(), c0 = cpu_seconds();
     if (r == LU_OK) r = vgrid_build(&g, m, boundary, opaque, p->res, err);
+    int md = p->dirs < DDOD_MOMENT_DIRS ? p->dirs : DDOD_MOMENT_DIRS;
+    lu_vec3 *mdirs = NULL;
     if (r == LU_OK && !(T = calloc(g.count * 3, sizeof *T))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
-    if (r == LU_OK) r = first_moment(&g, dirs, p->dirs, lu_v3_avg(sigma_t), T, err);
+    if (r == LU_OK && !(mdirs = malloc((size_t)md * sizeof *mdirs))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    if (r == LU_OK) {
+        lu_ddod_directions(md, mdirs);
+        r = first_moment(&g, mdirs, md, lu_v3_avg(sigma_t), T, err);
+    }
+    free(mdirs);
     double t1 = lu_time_seconds(), c1 = cpu_seconds();
 
     /* divergence -> local radius */
@@ -800,7 +987,7 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
                         lo[a] = c3[a] > 0 ? c3[a] - 1 : c3[a];
                         hi[a] = c3[a] < g.n[a] - 1 ? c3[a] + 1 : c3[a];
                         float span = (float)(hi[a] - lo[a]) * g.h;
-                        div += (T[3 * vidx(&g, hi[0], hi[1], hi[2]) + a] - T[3 * vidx(&g, lo[0], lo[1], lo[2]) + a]) /
+                        div += (T[a * g.count + vidx(&g, hi[0], hi[1], hi[2])] - T[a * g.count + vidx(&g, lo[0], lo[1], lo[2])]) /
                                (span > 0.0f ? span : h2);
                     }
                     float rho = fabsf(div);
@@ -822,8 +1009,9 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
             int k = 0;
             for (size_t v = 0; v < g.count; v++)
                 if (inv[v] >= 0.0f) sorted[k++] = inv[v];
-            qsort(sorted, (size_t)cnt, sizeof *sorted, cmp_float);
-            float lo = sorted[(int)(0.02 * (cnt - 1))], hi = sorted[(int)(0.98 * (cnt - 1))];
+            int klo = (int)(0.02 * (cnt - 1)), khi = (int)(0.98 * (cnt - 1));
+            float hi = select_kth(sorted, cnt, khi);
+            float lo = select_kth(sorted, khi, klo); /* the first khi now hold the smaller values */
             free(sorted);
             float base = (float)cbrt(volume / (2.0 * n_target));
             for (size_t v = 0; v < g.count; v++) {
@@ -838,17 +1026,23 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
              * 1.8 N_s points at scale 1 (measured), hence cbrt(1.8) to start. */
             float scale = 1.21f;
             int candidates = 8 * n_target;
+            pds_darts darts;
+            r = pds_draw(&f, candidates, p->seed + (uint32_t)mi * 7919u, &darts, err);
             for (int it = 0; it < 8 && r == LU_OK; it++) {
                 free(pts);
                 free(rad);
-                r = poisson_impl(&f, scale, candidates, p->seed + (uint32_t)mi * 7919u, &pv, &pts, &rad, &count, err);
+                r = pds_throw(&f, &darts, scale, &pv, &pts, &rad, &count, err);
                 if (r != LU_OK || count == 0) break;
                 double ratio = (double)count / n_target;
                 if (getenv("LUCENT_DDOD_DEBUG")) fprintf(stderr, "ddod: sampling pass %d: scale %.4f, %d samples\n", it, scale, count);
                 if (fabs(ratio - 1.0) <= 0.05) break;
                 scale *= (float)cbrt(ratio);
             }
+            pds_darts_free(&darts);
             if (r == LU_OK && count == 0) r = lu_fail(err, LU_ERR_INVALID_ARG, "ddod: medium %d: no sample fits", mi);
+            if (r == LU_OK)
+                r = sort_samples(pts, rad, count, g.lo,
+                                 lu_v3((float)g.n[0] * g.h, (float)g.n[1] * g.h, (float)g.n[2] * g.h), err);
         }
     }
     free(inv);
@@ -918,9 +1112,18 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
             fit_s = lu_time_seconds() - tf;
             fit_c = cpu_seconds() - cf;
             out->timing.sampling_s += fit_s;
-            sh_job sj = {dirs, p->dirs, out->bands, out->channels, out->stride, count, sigma_t, tau, ft,
+            int nc = out->bands * out->bands;
+            float *Y = r == LU_OK ? malloc((size_t)p->dirs * nc * sizeof *Y) : NULL;
+            if (r == LU_OK && !Y) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the SH table");
+            for (int d = 0; r == LU_OK && d < p->dirs; d++) {
+                float y[LU_SH_MAX_COEFFS];
+                lu_k_sh_eval(dirs[d], out->bands, y);
+                memcpy(Y + (size_t)d * nc, y, (size_t)nc * sizeof *y);
+            }
+            sh_job sj = {Y, p->dirs, out->bands, out->channels, out->stride, count, sigma_t, tau, ft,
                          out->sh + (size_t)base * out->stride};
             if (r == LU_OK) lu_parallel_for(count, 0, sh_samples, &sj, NULL);
+            free(Y);
             out->count = (int)total;
         }
     }
