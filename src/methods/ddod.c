@@ -4,8 +4,10 @@
  * precomputation of ddod_precompute.c. Per frame the CPU builds what both
  * backends read: per pixel the medium span of the camera ray and the
  * surface term (the paper's Phong pass with its depth buffer, here by
- * Embree ray casts), and the samples' balls binned into screen tiles; then
- * pass 1 (per sample) and pass 2 (per pixel) run on the chosen backend. */
+ * Embree ray casts), and the samples' balls binned into screen tiles; when
+ * the camera or a light moved, the traced table (each sample's exact
+ * attenuation towards the camera and each light, lu_ddod_ray); then pass 1
+ * (per sample) and pass 2 (per pixel) run on the chosen backend. */
 #include <lucent/lucent.h>
 
 #include <stdio.h>
