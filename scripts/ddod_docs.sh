@@ -4,7 +4,8 @@
 #   psi.csv             rel-L2 of each scene with view / light attenuation traced or from the SH
 #   dirs.csv + sphere_dirs<N>.png / _diff.png   the paper's Table 1 (32/128/512 directions;
 #                       images and rel_l2 on the paper's SH path, rel_l2_default with the defaults)
-#   precompute.csv      precomputation time breakdown at 128^3, 32 and 128 directions
+#   precompute.csv      precomputation time per stage at 128^3, 32 and 128 directions
+#                       (scripts/ddod_precompute.sh)
 #   scaling.csv + scaling.png   frame time vs lights and vs samples (examples/ddod_scaling)
 #   <scene>.png, <scene>_diff.png   default-settings images and difference images
 # Usage: scripts/ddod_docs.sh [BUILD_DIR]   (run from the repository root)
@@ -70,8 +71,8 @@ for d in 32 128 512; do
   echo "$d,$n,$e,$t,$e2" >>"$OUT/dirs.csv"
 done
 
-# 4. precomputation at 128^3 (the default res) with 32 and 128 directions: rows of dirs.csv
-grep -E "^(dirs|32|128)," "$OUT/dirs.csv" >"$OUT/precompute.csv"
+# 4. precomputation at 128^3 (the default res) with 32 and 128 directions, per stage
+scripts/ddod_precompute.sh "$build" >"$OUT/precompute.csv"
 
 # 5. frame time vs lights (still and moving) and samples, both backends, one run; the
 # light rows again on cube_torus, whose grid makes a traced light dearer
