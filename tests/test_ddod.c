@@ -568,6 +568,38 @@ static void test_images(void) {
     remove_dir(dir);
 }
 
+/* The precomputation's result does not depend on the thread count: the
+ * first moment is summed in integers, the darts are thrown serially, and
+ * every other stage writes per sample or per direction. A grid medium (the
+ * layered cube: sweeps for the sample attenuation too) and a constant one. */
+static void test_thread_invariance(void) {
+    const char *scenes[2] = {k_sphere, k_layered};
+    const char *old = getenv("LUCENT_THREADS");
+    char saved[32] = "";
+    if (old) snprintf(saved, sizeof saved, "%s", old);
+    for (int k = 0; k < 2; k++) {
+        lu_scene s;
+        lu_error err;
+        CHECK_OK(lu_scene_load_string(scenes[k], "scene.json", &s, &err), &err);
+        lu_ddod_params p = {32, 48, 1500, 4, 0.8f, 3, 4};
+        lu_ddod_set a, b;
+        setenv("LUCENT_THREADS", "1", 1);
+        CHECK_OK(lu_ddod_compute(&s, &p, &a, &err), &err);
+        setenv("LUCENT_THREADS", "3", 1);
+        CHECK_OK(lu_ddod_compute(&s, &p, &b, &err), &err);
+        CHECK(a.count > 0 && a.count == b.count && a.stride == b.stride);
+        if (a.count > 0 && a.count == b.count && a.stride == b.stride) {
+            CHECK(memcmp(a.samples, b.samples, (size_t)a.count * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float)) == 0);
+            CHECK(memcmp(a.sh, b.sh, (size_t)a.count * a.stride * sizeof(float)) == 0);
+        }
+        lu_ddod_set_free(&a);
+        lu_ddod_set_free(&b);
+        lu_scene_destroy(&s);
+    }
+    if (old) setenv("LUCENT_THREADS", saved, 1);
+    else unsetenv("LUCENT_THREADS");
+}
+
 int main(void) {
     RUN_TEST(test_sh_projection);
     RUN_TEST(test_sh_orthonormal_8);
@@ -577,6 +609,7 @@ int main(void) {
     RUN_TEST(test_traced_sphere);
     RUN_TEST(test_traced_update);
     RUN_TEST(test_cache);
+    RUN_TEST(test_thread_invariance);
     RUN_TEST(test_images);
     TEST_EXIT();
 }

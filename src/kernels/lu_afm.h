@@ -202,10 +202,10 @@ LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview 
 
 /* The lookup evaluates the 4 texels of a bilinear footprint together: the
  * series of one texel is a chain of dependent multiply-adds (the Chebyshev
- * recurrence and the sum), so four of them interleaved in one loop run in
- * about the time of one (measured: docs/afm.md, "Speed"). Each texel's
- * arithmetic is the one a texel evaluated alone would do, in the same
- * order: only the schedule changes, not the result. */
+ * recurrence and the sum), so four of them run side by side, one per lane
+ * of a vec4 (measured: docs/afm.md, "Speed"). Each texel's arithmetic is
+ * the one a texel evaluated alone would do, in the same order: only the
+ * schedule changes, not the result. */
 
 /* Where depth falls on the light ray of the texel record at `base`:
  * s = (depth - K_in) / (K_out - K_in) in (0, 1) where the series applies;
@@ -247,27 +247,25 @@ LU_FN vec3 lu_k_afm_texel_value(LU_CTX_PARAM, int base, float s, vec3 f) {
     return lu_v3(lu_clamp(f.x, tail.x, 1.0f), lu_clamp(f.y, tail.y, 1.0f), lu_clamp(f.z, tail.z, 1.0f));
 }
 
-/* One term k of one texel's series (grey: g; coloured: r, gg, bb) and its
- * recurrence step cos((k+1)a) = 2 cos(a) cos(ka) - cos((k-1)a), m = 2 cos(a). */
-#define LU_K_AFM_REC(cur, prev, m) \
+/* The 4 texels' series run side by side in the lanes of a vec4 (one SSE
+ * register on the CPU): coefficient i of the 4 records, and term k of the
+ * grey (g) or coloured (r, gg, bb) series with its Chebyshev step
+ * cos((k+1)a) = 2 cos(a) cos(ka) - cos((k-1)a), m = 2 cos(a) per lane. */
+#define LU_K_AFM_COEF4(i) \
+    lu_v4(lu_k_afm_fetch(LU_CTX, b0, i), lu_k_afm_fetch(LU_CTX, b1, i), lu_k_afm_fetch(LU_CTX, b2, i), \
+          lu_k_afm_fetch(LU_CTX, b3, i))
+#define LU_K_AFM_REC4 \
     nx = m * cur - prev; \
     prev = cur; \
     cur = nx;
-#define LU_K_AFM_T1(g, b, cur, prev, m, k) \
-    g += lu_k_afm_fetch(LU_CTX, b, LU_K_AFM_HEADER + (k)) * cur; \
-    LU_K_AFM_REC(cur, prev, m)
-#define LU_K_AFM_T3(r, gg, bb, b, cur, prev, m, k) \
-    r += lu_k_afm_fetch(LU_CTX, b, LU_K_AFM_HEADER + 3 * (k)) * cur; \
-    gg += lu_k_afm_fetch(LU_CTX, b, LU_K_AFM_HEADER + 3 * (k) + 1) * cur; \
-    bb += lu_k_afm_fetch(LU_CTX, b, LU_K_AFM_HEADER + 3 * (k) + 2) * cur; \
-    LU_K_AFM_REC(cur, prev, m)
-/* Term k of all four texels. */
 #define LU_K_AFM_T1X4(k) \
-    LU_K_AFM_T1(g0, b0, cur0, prev0, m0, k) LU_K_AFM_T1(g1, b1, cur1, prev1, m1, k) \
-    LU_K_AFM_T1(g2, b2, cur2, prev2, m2, k) LU_K_AFM_T1(g3, b3, cur3, prev3, m3, k)
+    g = g + LU_K_AFM_COEF4(LU_K_AFM_HEADER + (k)) * cur; \
+    LU_K_AFM_REC4
 #define LU_K_AFM_T3X4(k) \
-    LU_K_AFM_T3(r0, g0, e0, b0, cur0, prev0, m0, k) LU_K_AFM_T3(r1, g1, e1, b1, cur1, prev1, m1, k) \
-    LU_K_AFM_T3(r2, g2, e2, b2, cur2, prev2, m2, k) LU_K_AFM_T3(r3, g3, e3, b3, cur3, prev3, m3, k)
+    r = r + LU_K_AFM_COEF4(LU_K_AFM_HEADER + 3 * (k)) * cur; \
+    gg = gg + LU_K_AFM_COEF4(LU_K_AFM_HEADER + 3 * (k) + 1) * cur; \
+    bb = bb + LU_K_AFM_COEF4(LU_K_AFM_HEADER + 3 * (k) + 2) * cur; \
+    LU_K_AFM_REC4
 
 /* Transmittance from light l to x, bilinear over the 4 nearest texels. */
 LU_FN vec3 lu_k_afm_transmittance(LU_CTX_PARAM, lu_k_afm_params P, int l, vec3 x) {
@@ -294,44 +292,36 @@ LU_FN vec3 lu_k_afm_transmittance(LU_CTX_PARAM, lu_k_afm_params P, int l, vec3 x
     float s2 = lu_k_afm_depth_s(LU_CTX, b2, uvd.z), s3 = lu_k_afm_depth_s(LU_CTX, b3, uvd.z);
     vec3 f0 = lu_v3s(0.0f), f1 = lu_v3s(0.0f), f2 = lu_v3s(0.0f), f3 = lu_v3s(0.0f);
     if (lu_max(lu_max(s0, s1), lu_max(s2, s3)) >= 0.0f) {
-        float m0 = lu_k_afm_rec_factor(s0), m1 = lu_k_afm_rec_factor(s1);
-        float m2 = lu_k_afm_rec_factor(s2), m3 = lu_k_afm_rec_factor(s3);
-        float prev0 = 1.0f, prev1 = 1.0f, prev2 = 1.0f, prev3 = 1.0f;
-        float cur0 = 0.5f * m0, cur1 = 0.5f * m1, cur2 = 0.5f * m2, cur3 = 0.5f * m3;
-        float nx = 0.0f;
+        vec4 m = lu_v4(lu_k_afm_rec_factor(s0), lu_k_afm_rec_factor(s1), lu_k_afm_rec_factor(s2), lu_k_afm_rec_factor(s3));
+        vec4 prev = lu_v4s(1.0f), cur = 0.5f * m, nx = lu_v4s(0.0f);
         /* Loops run four terms per iteration: llvmpipe stops a shader
          * invocation's loops after 65535 iterations in total, which a
          * 500-step march with two lights would otherwise pass. */
+        int k = 1;
         if (P.channels == 3) {
-            float r0 = lu_k_afm_fetch(LU_CTX, b0, 6), g0 = lu_k_afm_fetch(LU_CTX, b0, 7), e0 = lu_k_afm_fetch(LU_CTX, b0, 8);
-            float r1 = lu_k_afm_fetch(LU_CTX, b1, 6), g1 = lu_k_afm_fetch(LU_CTX, b1, 7), e1 = lu_k_afm_fetch(LU_CTX, b1, 8);
-            float r2 = lu_k_afm_fetch(LU_CTX, b2, 6), g2 = lu_k_afm_fetch(LU_CTX, b2, 7), e2 = lu_k_afm_fetch(LU_CTX, b2, 8);
-            float r3 = lu_k_afm_fetch(LU_CTX, b3, 6), g3 = lu_k_afm_fetch(LU_CTX, b3, 7), e3 = lu_k_afm_fetch(LU_CTX, b3, 8);
-            int k = 1;
+            vec4 r = LU_K_AFM_COEF4(6), gg = LU_K_AFM_COEF4(7), bb = LU_K_AFM_COEF4(8);
             for (; k + 3 < P.coefs; k += 4) {
                 LU_K_AFM_T3X4(k) LU_K_AFM_T3X4(k + 1) LU_K_AFM_T3X4(k + 2) LU_K_AFM_T3X4(k + 3)
             }
             for (; k < P.coefs; k++) {
                 LU_K_AFM_T3X4(k)
             }
-            f0 = lu_v3(r0, g0, e0);
-            f1 = lu_v3(r1, g1, e1);
-            f2 = lu_v3(r2, g2, e2);
-            f3 = lu_v3(r3, g3, e3);
+            f0 = lu_v3(r[0], gg[0], bb[0]);
+            f1 = lu_v3(r[1], gg[1], bb[1]);
+            f2 = lu_v3(r[2], gg[2], bb[2]);
+            f3 = lu_v3(r[3], gg[3], bb[3]);
         } else {
-            float g0 = lu_k_afm_fetch(LU_CTX, b0, 6), g1 = lu_k_afm_fetch(LU_CTX, b1, 6);
-            float g2 = lu_k_afm_fetch(LU_CTX, b2, 6), g3 = lu_k_afm_fetch(LU_CTX, b3, 6);
-            int k = 1;
+            vec4 g = LU_K_AFM_COEF4(6);
             for (; k + 3 < P.coefs; k += 4) {
                 LU_K_AFM_T1X4(k) LU_K_AFM_T1X4(k + 1) LU_K_AFM_T1X4(k + 2) LU_K_AFM_T1X4(k + 3)
             }
             for (; k < P.coefs; k++) {
                 LU_K_AFM_T1X4(k)
             }
-            f0 = lu_v3s(g0);
-            f1 = lu_v3s(g1);
-            f2 = lu_v3s(g2);
-            f3 = lu_v3s(g3);
+            f0 = lu_v3s(g[0]);
+            f1 = lu_v3s(g[1]);
+            f2 = lu_v3s(g[2]);
+            f3 = lu_v3s(g[3]);
         }
     }
     vec3 T = lu_v3_scale(lu_k_afm_texel_value(LU_CTX, b0, s0, f0), (1.0f - ax) * (1.0f - ay));

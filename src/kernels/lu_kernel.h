@@ -7,6 +7,7 @@
  *     LU_INOUT(T)/LU_OUT(T) parameters, pass with LU_REF(x), read with LU_DEREF(x);
  *   - vectors are `vec3` with .x .y .z; arithmetic through lu_v3_* (lucent/math.h
  *     in C, defined below for GLSL); scalars through lu_exp, lu_sqrt, ...;
+ *     `vec4` (built by lu_v4/lu_v4s) takes + - * directly and v[i], nothing else;
  *   - structs: `struct lu_k_x { ... };` followed by LU_TYPEDEF(lu_k_x) (no semicolon:
  *     GLSL 4.50 rejects a lone one at global scope);
  *   - float literals with an f suffix (valid in both); no recursion, no
@@ -76,6 +77,9 @@ float lu_atan2(float y, float x) {
 }
 float lu_acos(float x) { return lu_atan2(sqrt((1.0f - x) * (1.0f + x)), x); }
 
+#define lu_v4(a, b, c, d) vec4(a, b, c, d)
+#define lu_v4s(s) vec4(s)
+
 vec3 lu_v3(float x, float y, float z) { return vec3(x, y, z); }
 vec3 lu_v3s(float s) { return vec3(s); }
 vec3 lu_v3_add(vec3 a, vec3 b) { return a + b; }
@@ -128,6 +132,16 @@ bool lu_v3_finite(vec3 a) { return !any(isnan(a)) && !any(isinf(a)); }
 #define lu_isfinite(x) isfinite(x)
 typedef lu_vec3 vec3;
 typedef unsigned int uint;
+/* vec4: four floats with elementwise + - * (a scalar operand is broadcast)
+ * and components v[i], as in GLSL; in C the GCC/Clang vector extension, one
+ * SSE register, so four independent chains of arithmetic written as one
+ * run four-wide. Build with lu_v4 / lu_v4s. */
+typedef float vec4 __attribute__((vector_size(16)));
+static inline vec4 lu_v4(float a, float b, float c, float d) {
+    vec4 v = {a, b, c, d};
+    return v;
+}
+static inline vec4 lu_v4s(float s) { return lu_v4(s, s, s, s); }
 /* Plain comparisons, like GLSL's min/max (whose NaN behaviour is undefined):
  * fminf/fmaxf are out-of-line libm calls on baseline x86-64. */
 static inline float lu_min(float a, float b) { return a < b ? a : b; }
