@@ -8,7 +8,11 @@
  * psi_i(w) = exp(-sigma_t tau(b_i, w)) is the attenuation from sample b_i to
  * the boundary along w, psi^F_i the same times the Fresnel transmittance of
  * the boundary crossings on the way (light entering the object, DESIGN §2),
- * both stored as real SH (lu_sh.h) per colour channel. gamma_i(x) =
+ * both stored as real SH (lu_sh.h) per colour channel; by default (an
+ * extension, ddod.view_psi / light_psi = traced) the two values pass 1 needs,
+ * towards the camera and towards each light, come exact from a table the
+ * CPU traces when the camera or a light moves (methods/ddod.c), and the SH
+ * serve environment light. gamma_i(x) =
  * A_i exp(-|x - b_i|^2 / (2 s_i^2)) is the sample's Gaussian, integrated in
  * closed form (erf) along the camera ray between the boundary's entry and
  * exit (or the first opaque hit), so the silhouette is the mesh's.
@@ -18,8 +22,8 @@
  * direction is taken at the sample's centre: across one ball it turns by
  * about s_i / distance (under 2 degrees in the bundled scenes), the same
  * "constant over the ball" approximation the paper makes for f. Lights cost
- * one SH evaluation each here, never per pixel, hence the sub-linear cost in
- * the number of lights (the paper's Table 3).
+ * one table read (or one SH evaluation) each here, never per pixel, hence
+ * the sub-linear cost in the number of lights (the paper's Table 3).
  *
  * Pass 2 (lu_k_ddod_pixel), one per pixel: sum over the pixel's tile list of
  * f_i * int gamma_i. With `normalize` (an extension, on by default) the sum

@@ -123,9 +123,9 @@ LU_FN float lu_k_rm_step_weight(float x) {
 #endif
 
 /* Opaque visibility of light l at the camera ray's surface hit: the shadow
- * map here; afm defines LU_K_RM_SURFACE_VIS(l, pixel, x, n) first to read
- * exact per-pixel visibility the CPU traced (a shadow map cannot be exact at
- * a lit/shadowed edge seen in a pixel). */
+ * map here; raymarch and afm define LU_K_RM_SURFACE_VIS(l, pixel, x, n)
+ * first to read exact per-pixel visibility the CPU traced (a shadow map
+ * cannot be exact at a lit/shadowed edge seen in a pixel). */
 #ifndef LU_K_RM_SURFACE_VIS
 #define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_rm_visibility(LU_CTX, l, x, n, P.map_res)
 #endif

@@ -4,8 +4,10 @@
  * precomputation of ddod_precompute.c. Per frame the CPU builds what both
  * backends read: per pixel the medium span of the camera ray and the
  * surface term (the paper's Phong pass with its depth buffer, here by
- * Embree ray casts), and the samples' balls binned into screen tiles; then
- * pass 1 (per sample) and pass 2 (per pixel) run on the chosen backend. */
+ * Embree ray casts), and the samples' balls binned into screen tiles; when
+ * the camera or a light moved, the traced table (each sample's exact
+ * attenuation towards the camera and each light, lu_ddod_ray); then pass 1
+ * (per sample) and pass 2 (per pixel) run on the chosen backend. */
 #include <lucent/lucent.h>
 
 #include <stdio.h>
@@ -467,12 +469,7 @@ static void sample_range(void *ctx, int64_t begin, int64_t end, int thread) {
     ddod_state *st = ctx;
     lu_vec3 cam = st->scene->camera.position;
     for (int64_t i = begin; i < end; i++) {
-        lu_vec3 f = lu_k_ddod_sample_radiance(&st->kctx, st->P, (int)i, cam);
-        float *r = st->radiance + 4 * (size_t)i;
-        r[0] = f.x;
-        r[1] = f.y;
-        r[2] = f.z;
-        r[3] = 0.0f;
+        put4(st->radiance + 4 * (size_t)i, lu_k_ddod_sample_radiance(&st->kctx, st->P, (int)i, cam));
     }
 }
 

@@ -211,6 +211,37 @@ typedef struct sweep_out {
     float *tau;
 } sweep_out;
 
+/* One row of a sweep step: tau at the voxels from the previous slice's q
+ * (bilinear upstream) and the density, and this slice's q = tau + (L/2) D.
+ * A loop of its own so that it vectorises. */
+static void sweep_row(const float *restrict qp, float *restrict qc, const float *restrict drow, float *restrict tau,
+                      int nb, ptrdiff_t pb, float w00, float w10, float w01, float w11, float half_len) {
+    for (int jb = 0; jb < nb; jb++) {
+        float up = w00 * qp[jb] + w10 * qp[jb + 1] + w01 * qp[jb + pb] + w11 * qp[jb + pb + 1];
+        float dh = half_len * drow[jb];
+        float t = up + dh;
+        qc[jb] = t + dh;
+        tau[jb] = t;
+    }
+}
+
+/* The first-moment contributions of one sweep row: exp(-sigma_t tau) w in
+ * fixed point, nothing in blocked voxels. */
+static void moment_row(const float *restrict drow, const float *restrict tau, float sigma_t, float fx, float fy,
+                       float fz, int32_t *restrict ax, int32_t *restrict ay, int32_t *restrict az, int nb) {
+    /* Adding and removing 1.5 * 2^23 rounds to the nearest integer (ties to
+     * even) for |x| < 2^22, as lrintf does, without a library call: the
+     * products are at most DDOD_FIX = 2^20. */
+    const float magic = 12582912.0f;
+    for (int jb = 0; jb < nb; jb++) {
+        if (!(drow[jb] < DDOD_BLOCK_DENSITY)) continue;
+        float e = expf(-sigma_t * tau[jb]);
+        ax[jb] += (int32_t)((e * fx + magic) - magic);
+        ay[jb] += (int32_t)((e * fy + magic) - magic);
+        az[jb] += (int32_t)((e * fz + magic) - magic);
+    }
+}
+
 /* One direction w over grid g: slices along the dominant axis a, from the
  * far side (+w) back. q holds tau + (L/2) D of the previous slice, padded
  * by one voxel of zeros (outside the grid nothing attenuates). */
@@ -231,6 +262,7 @@ static void sweep(const vgrid *g, lu_vec3 w, bool masked, float *q_prev, float *
     if (fc >= 1) fc = 0, tc = 1.0f;
     float w00 = (1 - tb) * (1 - tc), w10 = tb * (1 - tc), w01 = (1 - tb) * tc, w11 = tb * tc;
     ptrdiff_t off = (ptrdiff_t)fb + (ptrdiff_t)fc * pb;
+    float *row = q_prev + slice_pad; /* past the slice: see max_slice */
     memset(q_prev, 0, slice_pad * sizeof(float));
     memset(q_cur, 0, slice_pad * sizeof(float));
     const float *dens = masked ? g->perm[a] : g->perm_raw[a];
@@ -243,19 +275,11 @@ static void sweep(const vgrid *g, lu_vec3 w, bool masked, float *q_prev, float *
             const float *qp = q_prev + (size_t)(jc + 1) * pb + 1 + off;
             float *qc = q_cur + (size_t)(jc + 1) * pb + 1;
             size_t out_base = ((size_t)k * nc + jc) * nb;
-            for (int jb = 0; jb < nb; jb++) {
-                float up = w00 * qp[jb] + w10 * qp[jb + 1] + w01 * qp[jb + pb] + w11 * qp[jb + pb + 1];
-                float dh = half_len * drow[jb];
-                float tau = up + dh;
-                qc[jb] = tau + dh;
-                if (o->tau) o->tau[out_base + jb] = tau;
-                if (o->acc[0] && drow[jb] < DDOD_BLOCK_DENSITY) {
-                    float e = expf(-o->sigma_t * tau);
-                    o->acc[0][out_base + jb] += (int32_t)lrintf(e * fx);
-                    o->acc[1][out_base + jb] += (int32_t)lrintf(e * fy);
-                    o->acc[2][out_base + jb] += (int32_t)lrintf(e * fz);
-                }
-            }
+            float *tau = o->tau ? o->tau + out_base : row;
+            sweep_row(qp, qc, drow, tau, nb, pb, w00, w10, w01, w11, half_len);
+            if (o->acc[0])
+                moment_row(drow, tau, o->sigma_t, fx, fy, fz, o->acc[0] + out_base, o->acc[1] + out_base,
+                           o->acc[2] + out_base, nb);
         }
         float *t = q_prev;
         q_prev = q_cur;
@@ -272,7 +296,29 @@ typedef struct moment_job {
     float sigma_t;
     int32_t **acc;         /* groups x 3 axes x 3 components, permuted layouts */
     float **scratch;       /* groups x 2 slices */
+    float *T;              /* the result: 3 component arrays, native layout */
 } moment_job;
+
+/* T of rows (y, z) of the native layout: the integer sums of all groups and
+ * axes, scaled by the quadrature weight. */
+static void moment_sum_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    moment_job *j = ctx;
+    const vgrid *g = j->g;
+    double wq = 4.0 * M_PI / j->ndirs / DDOD_FIX;
+    for (int64_t r = begin; r < end; r++) {
+        int v[3] = {0, (int)(r % g->n[1]), (int)(r / g->n[1])};
+        for (v[0] = 0; v[0] < g->n[0]; v[0]++) {
+            int64_t s[3] = {0, 0, 0};
+            for (int gi = 0; gi < j->groups; gi++)
+                for (int a = 0; a < 3; a++) {
+                    size_t p = pidx(g, a, v);
+                    for (int comp = 0; comp < 3; comp++) s[comp] += j->acc[(gi * 3 + a) * 3 + comp][p];
+                }
+            size_t i = vidx(g, v[0], v[1], v[2]);
+            for (int comp = 0; comp < 3; comp++) j->T[comp * g->count + i] = (float)(s[comp] * wq);
+        }
+    }
+}
 
 static void moment_groups(void *ctx, int64_t begin, int64_t end, int thread) {
     moment_job *j = ctx;
@@ -289,12 +335,13 @@ static void moment_groups(void *ctx, int64_t begin, int64_t end, int thread) {
     }
 }
 
+/* Floats of one sweep scratch buffer: a padded slice and one row. */
 static size_t max_slice(const vgrid *g) {
     size_t slice = 0;
     for (int a = 0; a < 3; a++) {
         int b, c;
         axes_of(a, &b, &c);
-        size_t s = (size_t)(g->n[b] + 2) * (g->n[c] + 2);
+        size_t s = (size_t)(g->n[b] + 2) * (g->n[c] + 2) + (size_t)g->n[b];
         slice = s > slice ? s : slice;
     }
     return slice;
@@ -306,7 +353,7 @@ static lu_result first_moment(const vgrid *g, const lu_vec3 *dirs, int ndirs, fl
     int groups = lu_thread_count();
     if (groups > ndirs) groups = ndirs;
     if (groups > 8) groups = 8;
-    moment_job j = {g, dirs, ndirs, groups, sigma_t, NULL, NULL};
+    moment_job j = {g, dirs, ndirs, groups, sigma_t, NULL, NULL, NULL};
     j.acc = calloc((size_t)groups * 9, sizeof *j.acc);
     j.scratch = calloc((size_t)groups * 2, sizeof *j.scratch);
     bool ok = j.acc && j.scratch;
@@ -315,20 +362,8 @@ static lu_result first_moment(const vgrid *g, const lu_vec3 *dirs, int ndirs, fl
     for (int i = 0; ok && i < groups * 2; i++) ok = (j.scratch[i] = malloc(slice * sizeof(float))) != NULL;
     if (ok) {
         lu_parallel_for(groups, 1, moment_groups, &j, "ddod: optical depth");
-        double wq = 4.0 * M_PI / ndirs / DDOD_FIX;
-        int v[3];
-        for (v[2] = 0; v[2] < g->n[2]; v[2]++)
-            for (v[1] = 0; v[1] < g->n[1]; v[1]++)
-                for (v[0] = 0; v[0] < g->n[0]; v[0]++) {
-                    int64_t s[3] = {0, 0, 0};
-                    for (int gi = 0; gi < groups; gi++)
-                        for (int a = 0; a < 3; a++) {
-                            size_t p = pidx(g, a, v);
-                            for (int comp = 0; comp < 3; comp++) s[comp] += j.acc[(gi * 3 + a) * 3 + comp][p];
-                        }
-                    size_t i = vidx(g, v[0], v[1], v[2]);
-                    for (int comp = 0; comp < 3; comp++) T[comp * g->count + i] = (float)(s[comp] * wq);
-                }
+        j.T = T;
+        lu_parallel_for((int64_t)g->n[1] * g->n[2], 0, moment_sum_rows, &j, NULL);
     }
     for (int i = 0; j.acc && i < groups * 9; i++) free(j.acc[i]);
     for (int i = 0; j.scratch && i < groups * 2; i++) free(j.scratch[i]);
@@ -824,6 +859,7 @@ typedef struct sh_job {
     lu_vec3 sigma_t;
     const float *tau, *ft;
     float *sh;
+    atomic_int failed;     /* a worker could not get its scratch */
 } sh_job;
 
 /* Per sample: psi and psi^F at the directions, projected as lu_ddod_sh_project
@@ -831,7 +867,10 @@ typedef struct sh_job {
 static void sh_samples(void *ctx, int64_t begin, int64_t end, int thread) {
     sh_job *j = ctx;
     float *f = malloc((size_t)j->ndirs * 2 * sizeof *f);
-    if (!f) return;
+    if (!f) {
+        atomic_store(&j->failed, 1);
+        return;
+    }
     float *fF = f + j->ndirs;
     int nc = j->bands * j->bands;
     double scale = 4.0 * M_PI / j->ndirs;
@@ -952,6 +991,7 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
      * change against all n). */
     double t0 = lu_time_seconds(), c0 = cpu_seconds();
     if (r == LU_OK) r = vgrid_build(&g, m, boundary, opaque, p->res, err);
+    double c0g = cpu_seconds();
     int md = p->dirs < DDOD_MOMENT_DIRS ? p->dirs : DDOD_MOMENT_DIRS;
     lu_vec3 *mdirs = NULL;
     if (r == LU_OK && !(T = calloc(g.count * 3, sizeof *T))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
@@ -1121,8 +1161,10 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
                 memcpy(Y + (size_t)d * nc, y, (size_t)nc * sizeof *y);
             }
             sh_job sj = {Y, p->dirs, out->bands, out->channels, out->stride, count, sigma_t, tau, ft,
-                         out->sh + (size_t)base * out->stride};
+                         out->sh + (size_t)base * out->stride, 0};
             if (r == LU_OK) lu_parallel_for(count, 0, sh_samples, &sj, NULL);
+            if (r == LU_OK && atomic_load(&sj.failed))
+                r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory in the SH projection");
             free(Y);
             out->count = (int)total;
         }
@@ -1130,9 +1172,9 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
     double t5 = lu_time_seconds() - fit_s, c5 = cpu_seconds() - fit_c;
     if (getenv("LUCENT_DDOD_DEBUG"))
         fprintf(stderr,
-                "ddod: medium %d processor s: moment sweeps %.2f, divergence %.2f, sampling %.2f, sample attenuation "
+                "ddod: medium %d processor s: voxel grid %.2f, moment sweeps %.2f, divergence %.2f, sampling %.2f, sample attenuation "
                 "%.2f, fit %.2f, SH %.2f\n",
-                mi, c1 - c0, c2 - c1, c3 - c2, c4 - c3, fit_c, c5 - c4);
+                mi, c0g - c0, c1 - c0g, c2 - c1, c3 - c2, c4 - c3, fit_c, c5 - c4);
     out->timing.optical_depth_s += (t1 - t0) + (t4 - t3);
     out->timing.divergence_s += t2 - t1;
     out->timing.sampling_s += t3 - t2;

@@ -30,6 +30,8 @@ typedef struct lu_raymarch_frame {
     const float *views;              /* view_count*LU_RM_VIEW_FLOATS */
     const int *view_table;           /* light_count*2: first view, view count */
     const float *shadow;             /* view_count*map_res*map_res depths */
+    const float *surface_vis;        /* width*height*light_count: exact opaque visibility of each light
+                                      * at each camera hit (lu_media_rays_surface_vis) */
     unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
     int max_steps;                   /* most march steps any camera ray takes (media diagonal / step) */
 } lu_raymarch_frame;

@@ -7,7 +7,7 @@
 #include "methods/gpu_scene.h"
 #include "methods/raymarch.h"
 
-enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_STATE, B_COUNT };
+enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_STATE, B_SURFVIS, B_COUNT };
 
 struct lu_raymarch_gpu {
     lu_gpu_context *ctx;
@@ -66,6 +66,7 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
     }
     if (r == LU_OK) r = put(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
     if (r == LU_OK) r = put(g, B_STATE, NULL, pixels * 8 * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_SURFVIS, f->surface_vis, pixels * (size_t)f->light_count * sizeof(float), err);
     if (r != LU_OK) return r;
     lu_gpu_uniform_int(g->prog, "u_map_res", f->map_res);
     lu_gpu_uniform_float(g->prog, "u_step", f->step);

@@ -1,10 +1,10 @@
 /* raymarch.comp — the raymarch method on the GPU: one invocation per pixel
  * running kernels/lu_raymarch.h over the shared GPU scene
  * (kernels/lu_scene_gpu.glsl) and the frame buffers the CPU built (opaque
- * hits, bounded-media spans, light views, shadow maps). One dispatch marches
- * steps [u_seg_begin, u_seg_end) and keeps (L, tau) per pixel in RmState; the
- * last one (u_finish = 1) adds the ray's end and writes the pixel (see
- * lu_k_rm_segment for why the march is split). */
+ * hits, bounded-media spans, light views, shadow maps, surface visibility).
+ * One dispatch marches steps [u_seg_begin, u_seg_end) and keeps (L, tau) per
+ * pixel in RmState; the last one (u_finish = 1) adds the ray's end and writes
+ * the pixel (see lu_k_rm_segment for why the march is split). */
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "../kernels/lu_scene_gpu.glsl"
@@ -14,6 +14,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(std430, binding = LU_RM_BINDING_NEXT) writeonly buffer Out { float rm_out[]; };
 layout(std430, binding = LU_RM_BINDING_NEXT + 1) buffer RmState { vec4 rm_state[]; };
+layout(std430, binding = LU_RM_BINDING_NEXT + 2) readonly buffer RmSurfaceVis { float rm_surface_vis[]; };
 
 uniform float u_step;
 uniform float u_eps;
@@ -22,6 +23,10 @@ uniform vec3 u_background;
 uniform int u_seg_begin;
 uniform int u_seg_end;
 uniform int u_finish;
+
+/* Surfaces are lit with the CPU's exact per-pixel visibility (raymarch.c). */
+float lu_k_rm_surface_vis(LU_CTX_PARAM, int pixel, int l) { return rm_surface_vis[pixel * lu_scene_light_count() + l]; }
+#define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_rm_surface_vis(LU_CTX, pixel, l)
 
 #include "../kernels/lu_raymarch.h"
 
