@@ -195,8 +195,11 @@ static double box_exit(const double half[3], const double o[3], const double d[3
     return t;
 }
 
-/* Opaque surfaces seen by the camera are lit with exact visibility: a room
- * of zero-thickness walls (4 x 2 x 4 around the origin, no medium) lit by a
+/* Opaque surfaces seen by the camera are lit with exact visibility, by every
+ * method that lights them through lu_raymarch.h (raymarch, afm, gradient and
+ * its baselines rbf and pervoxel): a room of zero-thickness walls (4 x 2 x 4
+ * around the origin; the only medium, which gradient needs, sits behind the
+ * room at x = -8, where neither camera rays nor the sun's paths reach) lit by a
  * directional light through a window in its +X wall, the camera inside. A
  * visible point p of a wall with inward normal n is lit iff n . wl > 0 and
  * the ray p + s wl leaves the (convex) room through the window, so in closed
@@ -204,7 +207,7 @@ static double box_exit(const double half[3], const double o[3], const double d[3
  * this wrong along the room's edges (a texel-centre ray passing just outside
  * the room sees no occluder) and at the sun patch's edges (normal offset and
  * depth bias; 28 of these 3072 pixels): dusty_room was 0.32 rel-L2 off,
- * now 0.015 (docs/gpu.md). Pixels whose camera hit or whose exit through the
+ * now 0.015 (docs/gpu.md); gradient 0.34 -> 0.09. Pixels whose camera hit or whose exit through the
  * +X wall lies within 1e-4 of an edge where the answer changes are left out
  * (float rounding may fall either side). */
 static void test_surfaces_exact_visibility(void) {
@@ -216,6 +219,8 @@ static void test_surfaces_exact_visibility(void) {
              "{\"camera\": {\"position\": [-1.7, 0.7, -1.6], \"look_at\": [0.6, -0.8, 0.9], \"fov_y_deg\": 80,"
              "  \"width\": 64, \"height\": 48},"
              " \"lights\": [{\"type\": \"directional\", \"direction\": [%g, %g, %g], \"irradiance\": %g}],"
+             " \"media\": [{\"density\": {\"procedural\": \"smoke_plume\", \"center\": [-8, 0, 0], \"size\": [1, 1, 1],"
+             "   \"resolution\": 16, \"seed\": 4}, \"sigma_s\": [1, 1, 1], \"sigma_a\": [0.1, 0.1, 0.1]}],"
              " \"objects\": [{\"mesh\": {\"procedural\": \"room\", \"size\": [4, 2, 4], \"window\": [%g, %g, %g, %g]},"
              "   \"material\": {\"type\": \"diffuse\", \"albedo\": %g}}]}",
              wl_raw[0], wl_raw[1], wl_raw[2], E, win[0], win[1], win[2], win[3], albedo);
@@ -259,9 +264,12 @@ static void test_surfaces_exact_visibility(void) {
             }
         }
     CHECK_MSG(lit > w * h / 20, "the sun patch covers only %d pixels", lit);
-    for (int b = 0; b < 2 && truth && skip; b++) {
+    static const char *const methods[] = {"raymarch", "afm", "gradient", "rbf", "pervoxel"};
+    for (int k = 0; k < 10 && truth && skip; k++) {
+        const char *method = methods[k / 2];
+        int b = k % 2;
         lu_image img;
-        if (!render(&s, "raymarch", b ? LU_BACKEND_GPU : LU_BACKEND_CPU, 16, 512, &img)) continue;
+        if (!render(&s, method, b ? LU_BACKEND_GPU : LU_BACKEND_CPU, k < 2 ? 16 : 0, 512, &img)) continue;
         int wrong = 0, first = -1, used = 0;
         double got_first = 0.0;
         for (int i = 0; i < w * h; i++) {
@@ -273,9 +281,10 @@ static void test_surfaces_exact_visibility(void) {
                 wrong++;
             }
         }
-        fprintf(stderr, "  %s: %d of %d pixels differ from the closed form (%d lit, %d on edges left out)\n",
-                b ? "GPU" : "CPU", wrong, used, lit, w * h - used);
-        CHECK_MSG(wrong == 0, "%s: %d pixels wrong, first (%d, %d): %.6g, closed form %.6g", b ? "GPU" : "CPU", wrong,
+        fprintf(stderr, "  %s %s: %d of %d pixels differ from the closed form (%d lit, %d on edges left out)\n",
+                method, b ? "GPU" : "CPU", wrong, used, lit, w * h - used);
+        CHECK_MSG(wrong == 0, "%s %s: %d pixels wrong, first (%d, %d): %.6g, closed form %.6g", method,
+                  b ? "GPU" : "CPU", wrong,
                   first % w, first / w, got_first, first >= 0 ? truth[first] : 0.0);
         lu_image_destroy(&img);
     }

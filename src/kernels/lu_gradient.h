@@ -39,7 +39,9 @@
  *   float lu_k_gr_bmap_at(LU_CTX_PARAM, int k);  (float k of the boundary-map buffer, methods/media_ray.h)
  *   float lu_k_gr_surf(LU_CTX_PARAM, int k);     (per medium 8 floats: boundary material albedo, shininess,
  *       specular, -; then from surf_normals_at per pixel and medium the span's boundary normals,
- *       LU_MR_NORMAL_FLOATS: entry, exit; outward, zero where the span has no such end)
+ *       LU_MR_NORMAL_FLOATS: entry, exit; outward, zero where the span has no such end;
+ *       then from surf_vis_at per pixel and light the light's visibility at the camera
+ *       ray's opaque hit, lu_media_rays_surface_vis)
  *
  * Shadow rays through a bounded medium use the lights' boundary maps: the
  * segment of the light ray inside the boundary and F_t at its crossings, as
@@ -211,6 +213,13 @@ LU_FN vec3 lu_k_gr_light_transmittance(LU_CTX_PARAM, int l, vec3 x, vec3 wl, flo
 #ifndef LU_RAYMARCH_H
 #define LU_K_RM_INSCATTER lu_k_gr_inscatter
 #define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_gr_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist)
+/* Camera-visible surfaces take the exact visibility the CPU traced per pixel
+ * and light (methods/media_ray.h), as in raymarch and afm: a shadow map leaks
+ * light at thin occluders (dusty_room's window: 0.34 rel-L2 with the map). */
+LU_FN float lu_k_gr_surface_vis(LU_CTX_PARAM, int pixel, int l) {
+    return lu_k_gr_surf(LU_CTX, lu_k_gr_get(LU_CTX).surf_vis_at + pixel * lu_k_light_count(LU_CTX) + l);
+}
+#define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_gr_surface_vis(LU_CTX, pixel, l)
 #endif
 #include "lu_raymarch.h"
 

@@ -28,7 +28,8 @@ struct lu_k_gr_params {
     int bview_count;   /* 0: no bounded medium, shadow rays clip media to their boxes */
     int surf_normals_at; /* lu_k_gr_surf: where the per-pixel boundary normals start (after 8 floats per medium) */
     int reflect;       /* 1: add the boundary reflection where camera rays enter bounded media */
-    int pad0, pad1;
+    int surf_vis_at;   /* lu_k_gr_surf (GPU): where the per-pixel, per-light surface visibility starts */
+    int pad1;
 };
 LU_TYPEDEF(lu_k_gr_params)
 

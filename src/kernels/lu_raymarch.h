@@ -123,7 +123,7 @@ LU_FN float lu_k_rm_step_weight(float x) {
 #endif
 
 /* Opaque visibility of light l at the camera ray's surface hit: the shadow
- * map here; raymarch and afm define LU_K_RM_SURFACE_VIS(l, pixel, x, n)
+ * map here; raymarch, afm and gradient define LU_K_RM_SURFACE_VIS(l, pixel, x, n)
  * first to read exact per-pixel visibility the CPU traced (a shadow map
  * cannot be exact at a lit/shadowed edge seen in a pixel). */
 #ifndef LU_K_RM_SURFACE_VIS

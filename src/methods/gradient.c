@@ -67,7 +67,9 @@ static inline lu_vec3 lu_k_gr_field(const struct lu_k_ctx *c, int i) {
 }
 static inline float lu_k_gr_bmap_at(const struct lu_k_ctx *c, int k) { return c->mr->bmap[k]; }
 static inline float lu_k_gr_surf(const struct lu_k_ctx *c, int k) {
-    return k < c->G.surf_normals_at ? c->surf[k] : c->mr->normals[k - c->G.surf_normals_at];
+    if (k < c->G.surf_normals_at) return c->surf[k];
+    if (k < c->G.surf_vis_at) return c->mr->normals[k - c->G.surf_normals_at];
+    return c->mr->surface_vis[k - c->G.surf_vis_at];
 }
 static inline int lu_k_gr_cell_begin(const struct lu_k_ctx *c, int cell) { return c->cell_begin[cell]; }
 static inline int lu_k_gr_cell_end(const struct lu_k_ctx *c, int cell) { return c->cell_begin[cell + 1]; }
@@ -610,6 +612,7 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
     lu_result r = lu_media_rays_camera(&st->mr, scene, st->cam, err);
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, scene, kl, st->nl, err);
     if (r == LU_OK) r = lu_media_rays_boundary_maps(&st->mr, scene, kl, st->nl, err);
+    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, scene, st->cam, kl, st->nl, st->eps, err);
     if (r != LU_OK) return r;
     lu_gradient_stats keep = st->stats;
     memset(&st->stats, 0, sizeof st->stats);
@@ -648,6 +651,7 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
     G.bmaps_at = st->mr.bmap_maps_at;
     G.bview_count = st->mr.bmap_view_count;
     G.surf_normals_at = 8 * st->nm;
+    G.surf_vis_at = G.surf_normals_at + c->width * c->height * st->nm * LU_MR_NORMAL_FLOATS;
     G.reflect = 0;
     for (int m = 0; m < st->nm; m++) {
         const lu_material *sm = &scene->media[m].surface;

@@ -121,12 +121,15 @@ lu_result lu_gradient_gpu_render(lu_gradient_gpu *g, const lu_scene *scene, cons
     if (r == LU_OK) r = lu_gpu_buffer_upload(g->buf[B_CELLS], 0, f->cell_begin, (nc + 1) * sizeof(int), err);
     if (r == LU_OK && items)
         r = lu_gpu_buffer_upload(g->buf[B_CELLS], (nc + 1) * sizeof(int), f->cell_items, items * sizeof(int), err);
-    /* boundary materials then the camera rays' span normals */
+    /* boundary materials, the camera rays' span normals, then each light's
+     * visibility at the camera rays' opaque hits (one buffer, same reason) */
     size_t mats = (size_t)f->G.surf_normals_at * sizeof(float);
     size_t nrm = pixels * (size_t)f->medium_count * LU_MR_NORMAL_FLOATS * sizeof(float);
-    if (r == LU_OK) r = put(g, B_SURF, NULL, mats + nrm, err);
+    size_t vis = pixels * (size_t)f->light_count * sizeof(float);
+    if (r == LU_OK) r = put(g, B_SURF, NULL, mats + nrm + vis, err);
     if (r == LU_OK) r = lu_gpu_buffer_upload(g->buf[B_SURF], 0, f->surf, mats, err);
     if (r == LU_OK && f->mr->normals) r = lu_gpu_buffer_upload(g->buf[B_SURF], mats, f->mr->normals, nrm, err);
+    if (r == LU_OK && vis) r = lu_gpu_buffer_upload(g->buf[B_SURF], mats + nrm, f->mr->surface_vis, vis, err);
     if (r == LU_OK) r = put(g, B_FIELD, NULL, nv * 3 * sizeof(float), err);
     if (r == LU_OK) r = put(g, B_ET, NULL, 16, err);
     if (r != LU_OK) return r;
