@@ -704,6 +704,9 @@ static void test_loop_budget(void) {
             got[1] == 1000000 ? " (no loop cap)" : " (loops capped: work must be split)");
     /* What LU_RM_LOOP_BUDGET assumes of a software rasteriser. */
     if (in.is_software && strstr(in.renderer, "llvmpipe")) CHECK(got[1] < 65536);
+    /* lu_gpu_info.loop_cap (which afm and ddod read to refuse work past the
+     * cap) says exactly what the driver did. */
+    CHECK_MSG(in.loop_cap == (got[1] != 1000000), "loop_cap %d, but the loop counted %d", (int)in.loop_cap, got[1]);
 done:
     lu_gpu_buffer_destroy(b);
     lu_gpu_program_destroy(p);

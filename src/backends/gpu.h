@@ -82,6 +82,8 @@ typedef struct lu_gpu_context lu_gpu_context;
 typedef struct lu_gpu_info {
     char vendor[128], renderer[256], version[128], glsl_version[64];
     bool is_software;
+    bool loop_cap;            /* Mesa llvmpipe: every loop of a shader invocation stops after 65535
+                               * iterations in total, silently (tests/test_gpu.c, test_loop_budget) */
     char egl_path[16];        /* "device" (EGL_EXT_platform_device) or "surfaceless" */
     char device[256];         /* the chosen device, e.g. "EGL device 0 (software: EGL_MESA_device_software)" */
     char device_list[512];    /* every enumerated EGL device, "; "-separated */

@@ -56,7 +56,7 @@ void lu_afm_gpu_destroy(lu_afm_gpu *g) {
 size_t lu_afm_gpu_limits(const lu_afm_gpu *g, bool *loop_cap) {
     lu_gpu_info info;
     lu_gpu_info_get(g->ctx, &info);
-    *loop_cap = strstr(info.renderer, "llvmpipe") != NULL;
+    *loop_cap = info.loop_cap;
     return info.max_ssbo_size > 0 ? (size_t)info.max_ssbo_size : 0;
 }
 

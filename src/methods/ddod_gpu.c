@@ -17,7 +17,7 @@ struct lu_ddod_gpu {
     lu_gpu_buffer *buf[B_COUNT];
     unsigned set_version, traced_version;
     bool set_uploaded, traced_uploaded;
-    bool software;             /* llvmpipe: loop-iteration cap applies */
+    bool loop_cap;             /* llvmpipe: loop-iteration cap applies (lu_gpu_info) */
 };
 
 lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error *err) {
@@ -31,7 +31,7 @@ lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error 
     if (r == LU_OK) {
         lu_gpu_info info;
         lu_gpu_info_get(g->ctx, &info);
-        g->software = info.is_software;
+        g->loop_cap = info.loop_cap;
     }
     if (r != LU_OK) {
         lu_ddod_gpu_destroy(g);
@@ -74,7 +74,7 @@ lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_ddo
     int longest = 0;
     for (int t = 0; t < f->P.tiles_x * f->tiles_y; t++)
         longest = f->tile_start[t + 1] - f->tile_start[t] > longest ? f->tile_start[t + 1] - f->tile_start[t] : longest;
-    if (g->software && longest > 60000)
+    if (g->loop_cap && longest > 60000)
         return lu_fail(err, LU_ERR_LIMIT,
                        "ddod: a 16x16 tile holds %d Gaussians, past llvmpipe's 65535 loop iterations per invocation "
                        "(fewer ddod.samples or a larger image)",

@@ -340,6 +340,7 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
             snprintf(info->device, sizeof info->device, "%s", cands[i].desc);
             query_limits(info);
             if (renderer_is_software(info->renderer)) info->is_software = true;
+            info->loop_cap = strstr(info->renderer, "llvmpipe") != NULL;
             info->create_seconds = lu_time_seconds() - t0;
             *out = ctx;
             return LU_OK;
