@@ -3,9 +3,11 @@
 #ifndef LU_TEST_H
 #define LU_TEST_H
 
+#include <lucent/lucent.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 static int lu_test_failures = 0;
 static int lu_test_checks = 0;
@@ -85,6 +87,22 @@ static inline void lu_test_gauss_legendre(int n, double *x, double *w) {
         x[i] = z;
         w[i] = 2.0 / ((1 - z * z) * dp * dp);
     }
+}
+
+/* rel-L2 of a against b by the library's metric (the one `lucent compare` prints). */
+static inline double lu_test_rel_l2(const lu_image *a, const lu_image *b) {
+    lu_metrics m = {0};
+    lu_error err = {0};
+    CHECK_OK(lu_image_compare(a, b, &m, &err), &err);
+    return m.rel_l2;
+}
+
+/* Adds space-separated "method.key=value" settings to kv, each one checked. */
+static inline void lu_test_settings(lu_kvlist *kv, const char *settings) {
+    char buf[1024];
+    lu_error err = {0};
+    snprintf(buf, sizeof buf, "%s", settings ? settings : "");
+    for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " ")) CHECK_OK(lu_kv_parse_assignment(kv, tok, &err), &err);
 }
 
 #define RUN_TEST(fn)                                   \

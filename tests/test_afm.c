@@ -249,13 +249,6 @@ static bool render(const lu_scene *s, const char *method, lu_backend backend, lu
     return rc == LU_OK;
 }
 
-static double rel_l2(const lu_image *a, const lu_image *b) {
-    lu_metrics m;
-    lu_error err = {0};
-    CHECK_OK(lu_image_compare(a, b, &m, &err), &err);
-    return m.rel_l2;
-}
-
 /* A bundled scene at size x size pixels. */
 static bool load_bundled(const char *name, int size, lu_scene *s) {
     char path[512];
@@ -275,7 +268,7 @@ static void test_against_reference(void) {
         if (!load_bundled(scenes[i], 64, &s)) continue;
         lu_image ref, afm;
         if (render(&s, "reference", LU_BACKEND_CPU, &ref, NULL) && render(&s, "afm", LU_BACKEND_CPU, &afm, NULL)) {
-            double e = rel_l2(&afm, &ref);
+            double e = lu_test_rel_l2(&afm, &ref);
             fprintf(stderr, "  %s 64x64: afm vs reference rel-L2 %.4f\n", scenes[i], e);
             CHECK(e <= 0.02);
             lu_image_destroy(&afm);
@@ -315,10 +308,10 @@ static void test_blocker_shadow(void) {
             }
         double ratio_ref = sum[0][0] / sum[0][1], ratio_afm = sum[1][0] / sum[1][1];
         fprintf(stderr, "  blocker: shadowed/lit radiance, reference %.4f, afm %.4f; image rel-L2 %.4f\n", ratio_ref,
-                ratio_afm, rel_l2(&afm, &ref));
+                ratio_afm, lu_test_rel_l2(&afm, &ref));
         CHECK(ratio_ref > 0.1 && ratio_ref < 0.7);
         CHECK_NEAR(ratio_afm, ratio_ref, 0.02 * ratio_ref + 0.002);
-        CHECK(rel_l2(&afm, &ref) <= 0.02);
+        CHECK(lu_test_rel_l2(&afm, &ref) <= 0.02);
         lu_image_destroy(&afm);
     }
     lu_image_destroy(&ref);
@@ -337,7 +330,7 @@ static void test_gpu_matches_cpu(void) {
         lu_image cpu, gpu;
         if (render(&s, "afm", LU_BACKEND_CPU, &cpu, "afm.map_res=64") &&
             render(&s, "afm", LU_BACKEND_GPU, &gpu, "afm.map_res=64")) {
-            double e = rel_l2(&gpu, &cpu);
+            double e = lu_test_rel_l2(&gpu, &cpu);
             fprintf(stderr, "  %s 40x40: GPU vs CPU rel-L2 %.2e\n", scenes[i], e);
             CHECK(e <= 1e-3);
             lu_image_destroy(&gpu);

@@ -345,15 +345,6 @@ static void test_traced_sphere(void) {
     lu_scene_destroy(&s);
 }
 
-static double rel_l2(const lu_image *a, const lu_image *b) {
-    double num = 0.0, den = 0.0;
-    for (size_t i = 0; i < (size_t)a->width * a->height * 3; i++) {
-        num += (a->rgb[i] - b->rgb[i]) * (double)(a->rgb[i] - b->rgb[i]);
-        den += (double)b->rgb[i] * b->rgb[i];
-    }
-    return sqrt(num / den);
-}
-
 /* The traced table follows the scene: moving a light recomputes only the
  * light entries, moving the camera only the view entries, changing a
  * light's colour neither, adding or removing a light both; each frame then equals a fresh renderer's frame
@@ -406,7 +397,7 @@ static void test_traced_update(void) {
         lu_renderer_destroy(fresh);
         if (gpu) {
             CHECK_OK(lu_renderer_render(gpu, &s, &g, &err), &err);
-            double e = rel_l2(&g, &a);
+            double e = lu_test_rel_l2(&g, &a);
             CHECK_MSG(e < 1e-3, "step %d: GPU vs CPU rel-L2 %.3g", step, e);
         }
     }
@@ -572,12 +563,12 @@ static void test_images(void) {
             for (int v = 0; v < 2; v++) {
                 lu_image cpu = {0}, gpu = {0};
                 if (render(&s, "ddod", LU_BACKEND_CPU, sets[v], &cpu)) {
-                    double e = rel_l2(&cpu, &ref);
+                    double e = lu_test_rel_l2(&cpu, &ref);
                     fprintf(stderr, "  scene %d, %s: ddod vs reference rel-L2 %.4f\n", k, v ? "SH (paper)" : "traced", e);
                     CHECK(e < tol[v][k]);
                     if (lu_method_find("ddod")->backends & LU_BACKEND_GPU &&
                         render(&s, "ddod", LU_BACKEND_GPU, sets[v], &gpu)) {
-                        double g = rel_l2(&gpu, &cpu);
+                        double g = lu_test_rel_l2(&gpu, &cpu);
                         fprintf(stderr, "  scene %d: GPU vs CPU rel-L2 %.2g\n", k, g);
                         CHECK(g < 1e-3);
                     }

@@ -254,9 +254,7 @@ static bool render(const lu_scene *s, const char *method, lu_backend b, const ch
                    lu_gradient_stats *stats) {
     lu_error err = {0};
     lu_kvlist kv = {0};
-    char buf[256];
-    snprintf(buf, sizeof buf, "%s", settings ? settings : "");
-    for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " ")) CHECK_OK(lu_kv_parse_assignment(&kv, tok, &err), &err);
+    lu_test_settings(&kv, settings);
     lu_renderer *r = NULL;
     CHECK_OK(lu_renderer_create(method, s, &kv, b, &r, &err), &err);
     if (r) CHECK_OK(lu_renderer_render(r, s, img, &err), &err);
@@ -264,13 +262,6 @@ static bool render(const lu_scene *s, const char *method, lu_backend b, const ch
     lu_renderer_destroy(r);
     lu_kv_free(&kv);
     return err.code == LU_OK;
-}
-
-static double rel_l2(const lu_image *a, const lu_image *b) {
-    lu_metrics m;
-    lu_error err;
-    CHECK_OK(lu_image_compare(a, b, &m, &err), &err);
-    return m.rel_l2;
 }
 
 static void test_splitting(void) {
@@ -303,7 +294,7 @@ static void check_scene(const char *name, double tol_gradient, double tol_pervox
     render(&s, "gradient", LU_BACKEND_CPU, NULL, &g, NULL);
     render(&s, "pervoxel", LU_BACKEND_CPU, NULL, &pv, NULL);
     render(&s, "rbf", LU_BACKEND_CPU, NULL, &rb, NULL);
-    double eg = rel_l2(&g, &ref), ep = rel_l2(&pv, &ref), er = rel_l2(&rb, &ref);
+    double eg = lu_test_rel_l2(&g, &ref), ep = lu_test_rel_l2(&pv, &ref), er = lu_test_rel_l2(&rb, &ref);
     fprintf(stderr, "  %s: gradient %.4f, pervoxel %.4f, rbf %.4f\n", name, eg, ep, er);
     CHECK_MSG(eg < tol_gradient, "%s gradient %g", name, eg);
     CHECK_MSG(ep < tol_pervoxel, "%s pervoxel %g", name, ep);
@@ -313,7 +304,7 @@ static void check_scene(const char *name, double tol_gradient, double tol_pervox
         lu_renderer *r = NULL;
         if (lu_renderer_create("gradient", &s, NULL, LU_BACKEND_GPU, &r, &err) == LU_OK) {
             CHECK_OK(lu_renderer_render(r, &s, &gg, &err), &err);
-            double d = rel_l2(&gg, &g);
+            double d = lu_test_rel_l2(&gg, &g);
             fprintf(stderr, "  %s: GPU vs CPU %.2e\n", name, d);
             CHECK_MSG(d < 1e-3, "%s GPU vs CPU %g", name, d);
         } else {

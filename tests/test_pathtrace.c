@@ -50,10 +50,7 @@ static bool render_json(const char *json, const char *method, const char *settin
     lu_kvlist kv = {0};
     CHECK_OK(lu_scene_load_string(json, "test.json", &s, &err), &err);
     if (err.code != LU_OK) return false;
-    char buf[1024];
-    snprintf(buf, sizeof buf, "%s", settings ? settings : "");
-    for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " "))
-        CHECK_OK(lu_kv_parse_assignment(&kv, tok, &err), &err);
+    lu_test_settings(&kv, settings);
     lu_renderer *r = NULL;
     lu_result res = lu_renderer_create(method, &s, &kv, LU_BACKEND_CPU, &r, &err);
     if (res == LU_OK) res = lu_renderer_render(r, &s, img, &err);
@@ -81,10 +78,7 @@ static bool load_bundled(const char *name, int w, int h, lu_scene *s) {
 static bool render_scene(const lu_scene *s, const char *method, const char *settings, lu_image *img) {
     lu_error err = {0};
     lu_kvlist kv = {0};
-    char buf[1024];
-    snprintf(buf, sizeof buf, "%s", settings);
-    for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " "))
-        CHECK_OK(lu_kv_parse_assignment(&kv, tok, &err), &err);
+    lu_test_settings(&kv, settings);
     lu_renderer *r = NULL;
     CHECK_OK(lu_renderer_create(method, s, &kv, LU_BACKEND_CPU, &r, &err), &err);
     if (r) CHECK_OK(lu_renderer_render(r, s, img, &err), &err);

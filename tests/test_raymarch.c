@@ -56,13 +56,6 @@ static bool render(const lu_scene *s, const char *method, lu_backend b, int step
     return rc == LU_OK;
 }
 
-static double rel_l2(const lu_image *a, const lu_image *truth) {
-    lu_metrics m = {0};
-    lu_error err = {0};
-    CHECK_OK(lu_image_compare(a, truth, &m, &err), &err);
-    return m.rel_l2;
-}
-
 /* Error vs the reference for 32, 128, 512, 2048 steps. */
 static void test_converges_to_reference(void) {
     static const char *const scenes[] = {"smoke_glow", "spot_shaft", "bunny_fog"};
@@ -81,7 +74,7 @@ static void test_converges_to_reference(void) {
             lu_image img;
             e[k] = 1e30;
             if (!render(&s, "raymarch", LU_BACKEND_CPU, steps[k], 512, &img)) continue;
-            e[k] = rel_l2(&img, &ref);
+            e[k] = lu_test_rel_l2(&img, &ref);
             lu_image_destroy(&img);
         }
         fprintf(stderr, "  %-11s rel-L2 vs reference: %.2e (32 steps) %.2e (128) %.2e (512) %.2e (2048)\n", scenes[i],
@@ -92,7 +85,7 @@ static void test_converges_to_reference(void) {
         CHECK_MSG(e[3] <= 2e-3, "%s: 2048 steps still %.3g from the reference", scenes[i], e[3]);
         lu_image gpu;
         if (render(&s, "raymarch", LU_BACKEND_GPU, steps[3], 512, &gpu)) {
-            double eg = rel_l2(&gpu, &ref);
+            double eg = lu_test_rel_l2(&gpu, &ref);
             fprintf(stderr, "  %-11s GPU, 2048 steps: %.2e\n", scenes[i], eg);
             CHECK(eg <= 2e-3);
             lu_image_destroy(&gpu);
@@ -113,7 +106,7 @@ static void test_shadow_maps_converge(void) {
         if (render(&s, "reference", LU_BACKEND_CPU, 0, 0, &ref)) {
             if (render(&s, "raymarch", LU_BACKEND_CPU, 1024, 64, &a)) {
                 if (render(&s, "raymarch", LU_BACKEND_CPU, 1024, 2048, &b)) {
-                    double ea = rel_l2(&a, &ref), eb = rel_l2(&b, &ref);
+                    double ea = lu_test_rel_l2(&a, &ref), eb = lu_test_rel_l2(&b, &ref);
                     fprintf(stderr, "  %-11s 1024 steps, rel-L2 vs reference: %.2e (64^2 maps) %.2e (2048^2)\n",
                             scenes[i], ea, eb);
                     CHECK_MSG(eb < ea, "%s: finer maps did not help (%.3g vs %.3g)", scenes[i], eb, ea);

@@ -125,11 +125,7 @@ static bool render_json(const char *json, const char *settings, lu_image *img) {
     bool ok = true;
     CHECK_OK(lu_scene_load_string(json, "test.json", &s, &err), &err);
     if (err.code != LU_OK) return false;
-    if (settings && *settings) {
-        char buf[256];
-        snprintf(buf, sizeof buf, "%s", settings);
-        for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " ")) lu_kv_parse_assignment(&kv, tok, &err);
-    }
+    lu_test_settings(&kv, settings);
     lu_renderer *r = NULL;
     lu_result res = lu_renderer_create("reference", &s, &kv, LU_BACKEND_CPU, &r, &err);
     if (res == LU_OK) res = lu_renderer_render(r, &s, img, &err);
@@ -343,9 +339,7 @@ static bool render_bundled(const char *name, int w, int h, const char *settings,
     s.camera.width = w;
     s.camera.height = h;
     lu_kvlist kv = {0};
-    char buf[256];
-    snprintf(buf, sizeof buf, "%s", settings);
-    for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " ")) CHECK_OK(lu_kv_parse_assignment(&kv, tok, &err), &err);
+    lu_test_settings(&kv, settings);
     lu_renderer *r = NULL;
     CHECK_OK(lu_renderer_create("reference", &s, &kv, LU_BACKEND_CPU, &r, &err), &err);
     if (r) CHECK_OK(lu_renderer_render(r, &s, img, &err), &err);
@@ -353,13 +347,6 @@ static bool render_bundled(const char *name, int w, int h, const char *settings,
     lu_kv_free(&kv);
     lu_scene_destroy(&s);
     return err.code == LU_OK;
-}
-
-static double rel_l2(const lu_image *a, const lu_image *b) {
-    lu_metrics m;
-    lu_error err;
-    CHECK_OK(lu_image_compare(a, b, &m, &err), &err);
-    return m.rel_l2;
 }
 
 static void test_reference_convergence(void) {
@@ -372,7 +359,7 @@ static void test_reference_convergence(void) {
     render_bundled("spot_shaft", 40, 30, "reference.tolerance=5e-4 reference.steps=2", &half);
     render_bundled("spot_shaft", 40, 30, "reference.tolerance=1e-5 reference.steps=4", &tight);
     render_bundled("spot_shaft", 40, 30, "reference.max_depth=0 reference.steps=0.5", &crude);
-    double e_half = rel_l2(&def, &half), e_tight = rel_l2(&def, &tight), e_crude = rel_l2(&crude, &tight);
+    double e_half = lu_test_rel_l2(&def, &half), e_tight = lu_test_rel_l2(&def, &tight), e_crude = lu_test_rel_l2(&crude, &tight);
     fprintf(stderr, "  spot_shaft rel_l2: default vs halved %.3g, vs tight %.3g; non-adaptive coarse vs tight %.3g\n",
             e_half, e_tight, e_crude);
     CHECK(e_half < 1e-3);
