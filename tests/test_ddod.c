@@ -345,8 +345,8 @@ static void test_traced_sphere(void) {
     lu_scene_destroy(&s);
 }
 
-/* The traced table follows the scene: moving a light recomputes only the
- * light entries, moving the camera only the view entries, changing a
+/* The traced table follows the scene: moving a light recomputes only that
+ * light's entries, moving the camera only the view entries, changing a
  * light's colour neither, adding or removing a light both; each frame then equals a fresh renderer's frame
  * of the changed scene bit for bit (same sample set), and a GPU renderer
  * kept across the same frames matches the CPU. */
@@ -367,12 +367,12 @@ static void test_traced_update(void) {
     CHECK_OK(lu_image_create(&b, s.camera.width, s.camera.height, &err), &err);
     CHECK_OK(lu_image_create(&g, s.camera.width, s.camera.height, &err), &err);
     lu_ddod_stats st;
-    int want_view = 0, want_lights = 0;
+    int want_view = 0, want_lights = 0, want_retraced = 0;
     for (int step = 0; step < 7; step++) {
-        if (step == 1) s.lights[0].position = lu_v3(1.0f, 2.5f, -2.0f), want_lights++;
+        if (step == 1) s.lights[0].position = lu_v3(1.0f, 2.5f, -2.0f), want_lights++, want_retraced += 1;
         if (step == 2) s.camera.position = lu_v3(0.5f, 1.0f, 3.4f), want_view++;
         if (step == 3) s.lights[1].intensity = lu_v3(10.0f, 20.0f, 40.0f);
-        if (step == 0) want_view++, want_lights++;
+        if (step == 0) want_view++, want_lights++, want_retraced += 2;
         if (step == 5) {  /* a third light: the table grows (view entries retraced with it) */
             lu_light *l = realloc(s.lights, 3 * sizeof *l);
             CHECK(l != NULL);
@@ -381,14 +381,16 @@ static void test_traced_update(void) {
             s.lights[2] = s.lights[0];
             s.lights[2].position = lu_v3(-1.5f, -2.0f, 2.5f);
             s.light_count = 3;
-            want_view++, want_lights++;
+            want_view++, want_lights++, want_retraced += 3;
         }
-        if (step == 6) s.light_count = 2, want_view++, want_lights++;
+        if (step == 6) s.light_count = 2, want_view++, want_lights++, want_retraced += 2;
         CHECK_OK(lu_renderer_render(r, &s, &a, &err), &err);
         CHECK(lu_ddod_last_stats(r, &st));
         CHECK_MSG(st.traced_view_updates == want_view && st.traced_light_updates == want_lights,
                   "step %d: %d view and %d light updates, want %d and %d", step, st.traced_view_updates,
                   st.traced_light_updates, want_view, want_lights);
+        CHECK_MSG(st.traced_lights_retraced == want_retraced, "step %d: %d lights retraced in all, want %d", step,
+                  st.traced_lights_retraced, want_retraced);
         lu_renderer *fresh = NULL;
         CHECK_OK(lu_renderer_create("ddod", &s, &kv, LU_BACKEND_CPU, &fresh, &err), &err);
         CHECK_OK(lu_renderer_render(fresh, &s, &b, &err), &err);

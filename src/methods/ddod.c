@@ -135,6 +135,7 @@ typedef struct ddod_state {
     int traced;
     float *traced_tab;
     lu_k_light *tab_lights;
+    bool *tab_retrace;         /* per light: retrace its entries this update */
     int tab_nl;
     lu_vec3 tab_cam;
     bool tab_view_valid, tab_lights_valid;
@@ -155,6 +156,7 @@ static void ddod_destroy(void *state) {
     free(st->rects);
     free(st->traced_tab);
     free(st->tab_lights);
+    free(st->tab_retrace);
     lu_tile_bins_free(&st->bins);
     free(st);
 }
@@ -326,6 +328,7 @@ static void traced_light_range(void *ctx, int64_t begin, int64_t end, int thread
         const float *s = st->set.samples + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
         lu_vec3 b = lu_v3(s[0], s[1], s[2]);
         for (int l = 0; l < st->nl; l++) {
+            if (!st->tab_retrace[l]) continue;
             lu_k_light_sample ls = lu_k_light_arrive(st->kl[l], b);
             lu_vec3 psi = traced_psi(st, (int)s[LU_K_DDOD_SAMPLE_MEDIUM], b, ls.wl, ls.dist, true);
             put4(st->traced_tab + ((size_t)i * (st->nl + 1) + 1 + l) * 4, psi);
@@ -353,18 +356,23 @@ static lu_result update_traced(ddod_state *st, lu_error *err) {
         size_t need = (size_t)(st->set.count ? st->set.count : 1) * (size_t)(st->nl + 1) * 4;
         float *t = realloc(st->traced_tab, need * sizeof *t);
         lu_k_light *pl = realloc(st->tab_lights, (st->nl ? (size_t)st->nl : 1u) * sizeof *pl);
+        bool *rt = realloc(st->tab_retrace, (st->nl ? (size_t)st->nl : 1u) * sizeof *rt);
         if (t) st->traced_tab = t;
         if (pl) st->tab_lights = pl;
-        if (!t || !pl) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the traced table");
+        if (rt) st->tab_retrace = rt;
+        if (!t || !pl || !rt) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the traced table");
         st->tab_nl = st->nl;
     }
     st->kctx.traced = st->traced_tab;
     lu_vec3 cam = st->scene->camera.position;
     bool view = (st->traced & LU_K_DDOD_TRACED_VIEW) &&
                 (fresh || !st->tab_view_valid || cam.x != st->tab_cam.x || cam.y != st->tab_cam.y || cam.z != st->tab_cam.z);
-    bool lights = (st->traced & LU_K_DDOD_TRACED_LIGHTS) && (fresh || !st->tab_lights_valid);
-    for (int l = 0; !lights && (st->traced & LU_K_DDOD_TRACED_LIGHTS) && l < st->nl; l++)
-        lights = light_moved(&st->kl[l], &st->tab_lights[l]);
+    /* every light on a fresh table, else only the lights that moved */
+    bool all = (st->traced & LU_K_DDOD_TRACED_LIGHTS) && (fresh || !st->tab_lights_valid), lights = all;
+    for (int l = 0; (st->traced & LU_K_DDOD_TRACED_LIGHTS) && l < st->nl; l++) {
+        st->tab_retrace[l] = all || light_moved(&st->kl[l], &st->tab_lights[l]);
+        lights = lights || st->tab_retrace[l];
+    }
     if (view) {
         double t0 = lu_time_seconds();
         lu_parallel_for(st->set.count, 0, traced_view_range, st, NULL);
@@ -380,6 +388,7 @@ static lu_result update_traced(ddod_state *st, lu_error *err) {
         st->tab_lights_valid = true;
         st->stats.ms_traced_lights = 1e3 * (lu_time_seconds() - t0);
         st->stats.traced_light_updates++;
+        for (int l = 0; l < st->nl; l++) st->stats.traced_lights_retraced += st->tab_retrace[l];
     }
     if (view || lights) st->tab_version++;
     return LU_OK;

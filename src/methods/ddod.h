@@ -146,6 +146,7 @@ typedef struct lu_ddod_stats {
     double ms_traced_view;     /* traced psi towards the camera this frame (0: the camera did not move) */
     double ms_traced_lights;   /* traced psi^F towards the lights this frame (0: no light moved) */
     int traced_view_updates, traced_light_updates;  /* recomputations of the traced table so far */
+    int traced_lights_retraced;                     /* lights whose entries those recomputed, summed */
     lu_ddod_timing precompute;
 } lu_ddod_stats;
 bool lu_ddod_last_stats(const lu_renderer *r, lu_ddod_stats *out);
