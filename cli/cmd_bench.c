@@ -1,6 +1,6 @@
 /* lucent bench SCENE.json --methods a,b — per-frame time after warm-up,
  * prepare time, peak memory, and error against the reference of the same
- * scene, all measured in one run (DESIGN.md §7). */
+ * scene, all measured in one run (docs/architecture.md §8). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>

@@ -6,8 +6,9 @@
 #include <string.h>
 
 #include "cli.h"
-#include "kernels/lu_diffusion.h"
-#include "methods/bssrdf_profile.h"
+#include "methods/bssrdf/lu_diffusion.h"
+#include "methods/bssrdf/bssrdf_profile.h"
+#include "methods/bssrdf/profile_mc.h"
 
 static void usage(void) {
     printf("usage: lucent profile [--preset NAME | --sigma-s R,G,B --sigma-a R,G,B] [options]\n"

@@ -11,8 +11,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "methods/afm.h"
-#include "methods/gpu_scene.h"
+#include "methods/afm/afm.h"
+#include "methods/common/gpu_scene.h"
 
 /* Exact optical depth (lu_march.h) for the procedural check. */
 struct lu_k_ctx {
@@ -22,7 +22,7 @@ static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
     const lu_medium *med = &c->scene->media[m];
     return med->kind == LU_DENSITY_CONSTANT ? med->constant : lu_grid_sample(&med->grid, p);
 }
-#include "kernels/lu_march.h"
+#include "methods/common/lu_march.h"
 
 typedef struct built {
     lu_scene scene;

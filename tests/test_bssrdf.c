@@ -21,10 +21,10 @@
 #include <string.h>
 
 #include "lu_test.h"
-#include "methods/bssrdf.h"
-#include "methods/bssrdf_profile.h"
-#include "methods/bssrdf_sampling.h"
-#include "kernels/lu_diffusion.h"
+#include "methods/bssrdf/bssrdf.h"
+#include "methods/bssrdf/bssrdf_profile.h"
+#include "methods/bssrdf/bssrdf_sampling.h"
+#include "methods/bssrdf/lu_diffusion.h"
 
 /* ---- independent formulas (double precision) ------------------------------------ */
 

@@ -1,7 +1,7 @@
 /* Cross-backend agreement: every method that runs on the GPU renders every
  * bundled scene (scenes/ *.json, found at run time, so new scenes and new GPU
  * methods are covered without editing this file) on both backends, and the
- * GPU image equals the CPU image within rel-L2 1e-3 (DESIGN.md §5; both
+ * GPU image equals the CPU image within rel-L2 1e-3 (docs/architecture.md §5; both
  * backends run the same kernel source, so the only differences are float
  * rounding and the order of operations in the shader compiler).
  *

@@ -14,7 +14,7 @@
 #include <unistd.h>
 
 #include "lu_test.h"
-#include "methods/ddod.h"
+#include "methods/ddod/ddod.h"
 #include "methods/methods.h"
 #include "kernels/lu_medium.h"
 
@@ -41,7 +41,7 @@ static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) {
     memset(&k, 0, sizeof k);
     return k;
 }
-#include "kernels/lu_ddod.h"
+#include "methods/ddod/lu_ddod.h"
 
 static double legendre_p(int l, double x) {
     double p0 = 1.0, p1 = x;

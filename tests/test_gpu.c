@@ -11,6 +11,7 @@
 #include <lucent/core.h>
 
 #include <dirent.h>
+#include <sys/stat.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
@@ -36,8 +37,14 @@ static int count_occurrences(const char *hay, const char *needle) {
 
 /* ---- embedded table --------------------------------------------------------------- */
 
-/* Every kernel/shader file in the source tree is embedded byte for byte. */
-static void check_dir(const char *sub, const char *const *suffixes, int nsuffix, int *found) {
+/* Every kernel file in the source tree is embedded byte for byte: lu_*.h,
+ * *.glsl and *.comp under src/kernels and src/methods (every room). */
+static bool is_kernel_file(const char *name) {
+    return (strncmp(name, "lu_", 3) == 0 && lu_path_has_suffix(name, ".h")) || lu_path_has_suffix(name, ".glsl") ||
+           lu_path_has_suffix(name, ".comp");
+}
+
+static void check_dir(const char *sub, int *found) {
     char dir[1024];
     snprintf(dir, sizeof dir, "%s/src/%s", LU_SOURCE_DIR, sub);
     DIR *d = opendir(dir);
@@ -45,12 +52,16 @@ static void check_dir(const char *sub, const char *const *suffixes, int nsuffix,
     if (!d) return;
     struct dirent *e;
     while ((e = readdir(d)) != NULL) {
-        bool match = false;
-        for (int i = 0; i < nsuffix; i++) match = match || lu_path_has_suffix(e->d_name, suffixes[i]);
-        if (!match) continue;
+        if (e->d_name[0] == '.') continue;
         char name[512], path[1600];
         snprintf(name, sizeof name, "%s/%s", sub, e->d_name);
         snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        struct stat st;
+        if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) {
+            check_dir(name, found);
+            continue;
+        }
+        if (!is_kernel_file(e->d_name)) continue;
         char *disk = NULL;
         size_t size = 0;
         lu_error err;
@@ -65,15 +76,14 @@ static void check_dir(const char *sub, const char *const *suffixes, int nsuffix,
 }
 
 static void test_embedded_sources(void) {
-    static const char *const kern[] = {".h", ".glsl"};
-    static const char *const shad[] = {".comp"};
     int found = 0;
-    check_dir("kernels", kern, 2, &found);
-    check_dir("shaders", shad, 1, &found);
-    CHECK(found >= 4);
+    check_dir("kernels", &found);
+    check_dir("methods", &found);
+    CHECK(found >= 20);
     CHECK(found == lu_gpu_embedded_source_count);
     CHECK(lu_gpu_source_find("kernels/lu_kernel.h") != NULL);
-    CHECK(lu_gpu_source_find("shaders/kernel_selftest.comp") != NULL);
+    CHECK(lu_gpu_source_find("kernels/kernel_selftest.comp") != NULL);
+    CHECK(lu_gpu_source_find("methods/afm/afm_build.comp") != NULL);
     CHECK(lu_gpu_source_find("lu_kernel.h") == NULL);
 }
 
@@ -115,13 +125,13 @@ static void test_assemble_embedded(void) {
     char *text = NULL;
     lu_gpu_source_map map;
     lu_error err;
-    CHECK_OK(lu_gpu_assemble("kernel_selftest.comp", NULL, NULL, 0, &text, &map, &err), &err);
+    CHECK_OK(lu_gpu_assemble("kernels/kernel_selftest.comp", NULL, NULL, 0, &text, &map, &err), &err);
     if (!text) return;
     CHECK(strncmp(text, "#version 450 core\n#define LU_GLSL 1\n#line 100001 1\n", 51) == 0);
     CHECK(count_occurrences(text, "#define LU_KERNEL_H") == 1);
     CHECK(count_occurrences(text, "\n#include") == 0);
     CHECK(map.count == 5);
-    CHECK(strcmp(map.names[1], "shaders/kernel_selftest.comp") == 0);
+    CHECK(strcmp(map.names[1], "kernels/kernel_selftest.comp") == 0);
     CHECK(strcmp(map.names[2], "kernels/lu_selftest.h") == 0);
     CHECK(strcmp(map.names[3], "kernels/lu_kernel.h") == 0);
     CHECK(strcmp(map.names[4], "kernels/lu_grid_sample.glsl") == 0);
@@ -329,7 +339,7 @@ static void test_kernel_selftest(void) {
     lu_error err;
     lu_gpu_program *prog = NULL;
     lu_gpu_buffer *bin = NULL, *bout = NULL;
-    CHECK_OK(lu_gpu_program_create(g_ctx, "kernel_selftest.comp", NULL, &prog, &err), &err);
+    CHECK_OK(lu_gpu_program_create(g_ctx, "kernels/kernel_selftest.comp", NULL, &prog, &err), &err);
     CHECK_OK(lu_gpu_buffer_create(g_ctx, sizeof(float) * N * LU_SELFTEST_IN, in, &bin, &err), &err);
     CHECK_OK(lu_gpu_buffer_create(g_ctx, sizeof(float) * N * LU_SELFTEST_OPS * 3, NULL, &bout, &err), &err);
     if (prog && bin && bout) {
@@ -394,7 +404,7 @@ static double ref_at(const float *g, int nx, int ny, int nz, int x, int y, int z
 }
 
 /* Trilinear between voxel centres at integer coordinates, zero outside [0, n-1]
- * (DESIGN.md §6), in double. */
+ * (docs/architecture.md §7), in double. */
 static double ref_trilinear(const float *g, int nx, int ny, int nz, double px, double py, double pz) {
     double fx = floor(px), fy = floor(py), fz = floor(pz);
     int x0 = (int)fx, y0 = (int)fy, z0 = (int)fz;
@@ -443,7 +453,7 @@ static void test_texture_trilinear(void) {
     lu_gpu_program *prog = NULL;
     lu_gpu_buffer *bin = NULL, *bout = NULL;
     lu_gpu_texture *tex = NULL;
-    CHECK_OK(lu_gpu_program_create(g_ctx, "shaders/kernel_selftest.comp", NULL, &prog, &err), &err);
+    CHECK_OK(lu_gpu_program_create(g_ctx, "kernels/kernel_selftest.comp", NULL, &prog, &err), &err);
     CHECK_OK(lu_gpu_buffer_create(g_ctx, sizeof pts, pts, &bin, &err), &err);
     CHECK_OK(lu_gpu_buffer_create(g_ctx, sizeof(float) * NP, NULL, &bout, &err), &err);
     CHECK_OK(lu_gpu_texture3d_create(g_ctx, NX, NY, NZ, grid, &tex, &err), &err);
@@ -510,7 +520,7 @@ static void test_image(void) {
     lu_error err;
     lu_gpu_program *prog = NULL;
     lu_gpu_texture *img = NULL;
-    CHECK_OK(lu_gpu_program_create(g_ctx, "kernel_selftest.comp", NULL, &prog, &err), &err);
+    CHECK_OK(lu_gpu_program_create(g_ctx, "kernels/kernel_selftest.comp", NULL, &prog, &err), &err);
     CHECK_OK(lu_gpu_image2d_create(g_ctx, W, H, &img, &err), &err);
     if (prog && img) {
         float px[W * H * 4];
@@ -577,7 +587,7 @@ static void test_program_errors(void) {
               err.message);
     fprintf(stderr, "  link error: %s\n", err.message);
     /* an error in the defines is reported against the preamble */
-    r = lu_gpu_program_create(g_ctx, "kernel_selftest.comp", "#define A 1\n#error no good\n", &p, &err);
+    r = lu_gpu_program_create(g_ctx, "kernels/kernel_selftest.comp", "#define A 1\n#error no good\n", &p, &err);
     CHECK(r == LU_ERR_BACKEND && p == NULL);
     CHECK_MSG(contains(err.message, "<preamble>:4"), "%s", err.message);
     r = lu_gpu_program_create(g_ctx, "no_such.comp", NULL, &p, &err);
@@ -617,7 +627,7 @@ static void test_argument_errors(void) {
     CHECK(lu_gpu_image2d_create(g_ctx, LU_MAX_IMAGE_DIM + 1, 4, &t, &err) == LU_ERR_LIMIT && t == NULL);
 
     lu_gpu_program *p = NULL;
-    CHECK_OK(lu_gpu_program_create(g_ctx, "kernel_selftest.comp", NULL, &p, &err), &err);
+    CHECK_OK(lu_gpu_program_create(g_ctx, "kernels/kernel_selftest.comp", NULL, &p, &err), &err);
     if (p) {
         CHECK(lu_gpu_dispatch(p, 0, 1, 1, &err) == LU_ERR_LIMIT);
         CHECK(lu_gpu_dispatch(p, 1, 1, (unsigned)info.max_work_group_count[2] + 1u, &err) == LU_ERR_LIMIT);

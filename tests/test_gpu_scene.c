@@ -1,4 +1,4 @@
-/* The shared GPU scene (methods/gpu_scene.h): a scene with a rotated, scaled
+/* The shared GPU scene (methods/common/gpu_scene.h): a scene with a rotated, scaled
  * fbm grid, a constant medium and three lights is uploaded; a test shader
  * reads it back through kernels/lu_scene_gpu.glsl and evaluates density
  * (lu_k_density) and exact optical depth (lu_march.h's lu_k_optical_depth)
@@ -11,7 +11,7 @@
 
 #include <string.h>
 
-#include "methods/gpu_scene.h"
+#include "methods/common/gpu_scene.h"
 
 /* CPU twin of the hook, over the scene's media. */
 struct lu_k_ctx {
@@ -21,7 +21,7 @@ static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
     const lu_medium *med = &c->scene->media[m];
     return med->kind == LU_DENSITY_CONSTANT ? med->constant : lu_grid_sample(&med->grid, p);
 }
-#include "kernels/lu_march.h"
+#include "methods/common/lu_march.h"
 
 static const char *k_scene =
     "{\"camera\": {\"position\": [0.5, 1, 7], \"look_at\": [0, 0, 0], \"fov_y_deg\": 40, \"width\": 37, \"height\": 23},"
@@ -42,7 +42,7 @@ static const char *k_scene =
 static const char *k_shader =
     "layout(local_size_x = 64) in;\n"
     "#include \"../kernels/lu_scene_gpu.glsl\"\n"
-    "#include \"../kernels/lu_march.h\"\n"
+    "#include \"methods/common/lu_march.h\"\n"
     "layout(std430, binding = LU_SCENE_BINDING_FREE) readonly buffer Rays { vec4 rays[]; };\n"
     "layout(std430, binding = LU_SCENE_BINDING_FREE + 1) writeonly buffer Out { vec4 result[]; };\n"
     "uniform int u_count;\n"

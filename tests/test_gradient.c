@@ -17,9 +17,9 @@
 #include "kernels/lu_optics.h"
 #include "backends/gpu.h"
 #include "lu_test.h"
-#include "methods/gradient.h"
-#include "methods/gradient_fit.h"
-#include "methods/lightview.h"
+#include "methods/gradient/gradient.h"
+#include "methods/gradient/gradient_fit.h"
+#include "methods/common/lightview.h"
 
 /* ---- a test context: one medium in [0,1]^3 with density 1 / (sigma_t (z - z0)) ---- */
 struct lu_k_ctx {
@@ -62,7 +62,7 @@ static inline float lu_k_gr_sample_fetch(const struct lu_k_ctx *c, int j, int k)
     return c->samples[(size_t)j * LU_K_GR_SAMPLE_FLOATS + k];
 }
 
-#include "kernels/lu_gradient.h"
+#include "methods/gradient/lu_gradient.h"
 
 static void make_ctx(struct lu_k_ctx *c) {
     memset(c, 0, sizeof *c);

@@ -2,7 +2,6 @@
  * kernel): one compute shader includes them all, on llvmpipe here and in CI. */
 #include <lucent/lucent.h>
 
-#include <dirent.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -22,7 +21,7 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "float lu_k_majorant(LU_CTX_PARAM, int m, int bx, int by, int bz) { return 1.0; }\n"
                                 "#include \"kernels/lu_medium.h\"\n"
                                 "#include \"kernels/lu_optics.h\"\n"
-                                "#include \"kernels/lu_lightview.h\"\n"
+                                "#include \"methods/common/lu_lightview.h\"\n"
                                 "int lu_k_medium_count(LU_CTX_PARAM) { return 1; }\n"
                                 "lu_k_medium lu_k_medium_get(LU_CTX_PARAM, int m) { lu_k_medium k; k.constant = 1; return k; }\n"
                                 "int lu_k_light_count(LU_CTX_PARAM) { return 1; }\n"
@@ -32,7 +31,7 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "lu_k_lightview lu_k_rm_view(LU_CTX_PARAM, int v) { lu_k_lightview w; w.ortho = 1; return w; }\n"
                                 "float lu_k_rm_span(LU_CTX_PARAM, int pixel, int m, int end) { return float(end); }\n"
                                 "float lu_k_rm_hit_fetch(LU_CTX_PARAM, int pixel, int k) { return -1.0; }\n"
-                                "#include \"kernels/lu_gradient_params.h\"\n"
+                                "#include \"methods/gradient/lu_gradient_params.h\"\n"
                                 "lu_k_gr_params lu_k_gr_get(LU_CTX_PARAM) { lu_k_gr_params p; p.nx = 1; return p; }\n"
                                 "vec3 lu_k_gr_field(LU_CTX_PARAM, int i) { return vec3(float(i)); }\n"
                                 "int lu_k_gr_cell_begin(LU_CTX_PARAM, int c) { return 0; }\n"
@@ -57,18 +56,18 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "lu_k_lightview lu_k_afm_view(LU_CTX_PARAM, int v) { lu_k_lightview w; w.ortho = 1; return w; }\n"
                                 "float lu_k_afm_cam_normal(LU_CTX_PARAM, int pixel, int m, int k) { return 0.0; }\n"
                                 "float lu_k_afm_surface(LU_CTX_PARAM, int m, int k) { return 1.0; }\n"
-                                "int lu_k_afm_param(LU_CTX_PARAM, int i) { return 4; }\n");
+                                "int lu_k_afm_param(LU_CTX_PARAM, int i) { return 4; }\n"
+                                "float lu_k_afm_surface_vis(LU_CTX_PARAM, int pixel, int l) { return 1.0; }\n");
+    /* Every embedded kernel header (lu_*.h in src/kernels and the method rooms). */
     int count = 0;
-    DIR *dir = opendir(LU_SOURCE_DIR "/src/kernels");
-    CHECK(dir != NULL);
-    if (!dir) return;
-    for (struct dirent *e; (e = readdir(dir));) {
-        size_t len = strlen(e->d_name);
-        if (len < 3 || strcmp(e->d_name + len - 2, ".h") != 0) continue;
-        n += (size_t)snprintf(src + n, sizeof src - n, "#include \"kernels/%s\"\n", e->d_name);
+    for (int i = 0; i < lu_gpu_embedded_source_count; i++) {
+        const char *name = lu_gpu_embedded_sources[i].name, *base = strrchr(name, '/');
+        base = base ? base + 1 : name;
+        size_t len = strlen(base);
+        if (strncmp(base, "lu_", 3) != 0 || len < 3 || strcmp(base + len - 2, ".h") != 0) continue;
+        n += (size_t)snprintf(src + n, sizeof src - n, "#include \"%s\"\n", name);
         count++;
     }
-    closedir(dir);
     snprintf(src + n, sizeof src - n, "void main() { o.v[0] = lu_smoothstep(0.0, 1.0, 0.5); }\n");
     fprintf(stderr, "  %d kernel headers\n", count);
     CHECK(count >= 8);

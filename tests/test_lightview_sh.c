@@ -6,7 +6,7 @@
 #include <stdlib.h>
 
 #include "lu_test.h"
-#include "methods/lightview.h"
+#include "methods/common/lightview.h"
 
 static const float *g_depth;
 static int g_res;
@@ -14,8 +14,8 @@ struct lu_k_ctx;
 static inline float lu_k_shadow_depth(const struct lu_k_ctx *c, int map, int i, int j) {
     return g_depth[(size_t)j * g_res + i];
 }
-#include "kernels/lu_shadowmap.h"
-#include "kernels/lu_sh.h"
+#include "methods/common/lu_shadowmap.h"
+#include "methods/common/lu_sh.h"
 
 static lu_vec3 dir_of(double ct, double phi) {
     double st = sqrt(fmax(0.0, 1.0 - ct * ct));

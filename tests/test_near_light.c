@@ -1,4 +1,4 @@
-/* lu_k_rm_near_light (kernels/lu_near_light.h), the raymarch view march's
+/* lu_k_rm_near_light (methods/common/lu_near_light.h), the raymarch view march's
  * step mean of a point light's 1/d^2 (shared by raymarch, afm and gradient):
  * its two forms against the mean in double, and against each other where
  * the kernel switches from one to the other. The whole-image effect of the
@@ -11,7 +11,7 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "kernels/lu_near_light.h"
+#include "methods/common/lu_near_light.h"
 
 /* The step's mean of 1/|p - x - s d|^2 over s in [sa, sb], times |p - x|^2,
  * in double from the two atans (no rearrangement shared with the kernel). */

@@ -27,7 +27,7 @@
 #include "backends/gpu.h"
 #include "lu_test.h"
 #include "methods/methods.h"
-#include "methods/pathtrace_internal.h"
+#include "methods/pathtrace/pathtrace_internal.h"
 
 /* Kernels under test with a test-local density context: one grid and its majorant. */
 struct lu_k_ctx {
@@ -39,8 +39,8 @@ static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) { r
 static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz) {
     return c->maj_scale * lu_pt_majorant_at(c->maj, bx, by, bz);
 }
-#include "kernels/lu_sampling.h"
-#include "kernels/lu_tracking.h"
+#include "methods/common/lu_sampling.h"
+#include "methods/pathtrace/lu_tracking.h"
 
 /* ---- helpers ------------------------------------------------------------------- */
 
@@ -879,7 +879,7 @@ static void test_kernels_glsl(void) {
          "layout(local_size_x = 64) in;\n"
          "float lu_k_density(int ctx, int m, vec3 p) { return 0.5 + 0.45 * sin(p.x) * cos(0.7 * p.y + p.z); }\n"
          "float lu_k_majorant(int ctx, int m, int bx, int by, int bz) { return 1.0; }\n"
-         "#include \"kernels/lu_tracking.h\"\n"
+         "#include \"methods/pathtrace/lu_tracking.h\"\n"
          "layout(std430, binding = 0) buffer Out { float o[]; };\n"
          "uniform int u_count;\n"
          "void main() {\n"

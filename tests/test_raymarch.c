@@ -1,4 +1,4 @@
-/* raymarch against the ground truth (`reference`, DESIGN.md §3).
+/* raymarch against the ground truth (`reference`, docs/architecture.md §2).
  *
  * raymarch is the reference's single-scattering integral with the Simpson
  * quadrature replaced by fixed midpoint steps (the optical depth to the
@@ -189,7 +189,7 @@ static double box_exit(const double half[3], const double o[3], const double d[3
 }
 
 /* Opaque surfaces seen by the camera are lit with exact visibility, by every
- * method that lights them through lu_raymarch.h (raymarch, afm, gradient and
+ * method that lights them through lu_view_march.h (raymarch, afm, gradient and
  * its baselines rbf and pervoxel): a room of zero-thickness walls (4 x 2 x 4
  * around the origin; the only medium, which gradient needs, sits behind the
  * room at x = -8, where neither camera rays nor the sun's paths reach) lit by a

@@ -18,7 +18,7 @@ struct lu_k_ctx {
     const lu_grid *grid;
 };
 static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) { return lu_grid_sample(c->grid, p); }
-#include "kernels/lu_march.h"
+#include "methods/common/lu_march.h"
 #include "kernels/lu_optics.h"
 
 static lu_grid make_grid(int n, float (*f)(int, int, int)) {

@@ -1,6 +1,6 @@
 /* lucent/grid.h — dense float density grids: NanoVDB, raw, procedural.
  *
- * Conventions (DESIGN.md §6): voxel centres sit at integer index coordinates;
+ * Conventions (docs/architecture.md §7): voxel centres sit at integer index coordinates;
  * density between centres is trilinear; values outside [0, n-1] are 0, so the
  * field falls linearly to zero one voxel beyond the outermost centres and its
  * support is the index box [-1, n]. This is exactly what a GL 3D texture with

@@ -1,6 +1,6 @@
-/* lucent/scene.h — the scene every method renders (DESIGN.md §2, §6).
+/* lucent/scene.h — the scene every method renders (docs/architecture.md §1, §7).
  *
- * A scene is loaded from the JSON contract in DESIGN.md and resolved into
+ * A scene is loaded from the JSON contract (docs/scene-format.md) and resolved into
  * world space: meshes are transformed, grids keep their index space plus a
  * composed index->world map, lights carry unit directions.
  *

@@ -21,9 +21,10 @@
 #include <stdint.h>
 
 /* ---- embedded sources ----------------------------------------------------
- * Every src/kernels/ *.h and *.glsl and src/shaders/ *.comp file, named by
- * its path relative to src/ ("kernels/lu_kernel.h", "shaders/x.comp"),
- * generated into the build directory by cmake/embed_sources.cmake. */
+ * Every kernel file (lu_*.h, *.glsl, *.comp) of src/kernels/ and of the
+ * method rooms under src/methods/, named by its path relative to src/
+ * ("kernels/lu_kernel.h", "methods/afm/afm_build.comp"), generated into the
+ * build directory by cmake/embed_sources.cmake. */
 typedef struct lu_gpu_source {
     const char *name;
     const char *text;      /* NUL-terminated */
@@ -119,7 +120,7 @@ double lu_gpu_time_end(lu_gpu_context *ctx, double t0);
 typedef struct lu_gpu_program lu_gpu_program;
 
 /* Compiles and links a compute program from an embedded source: comp_name is
- * "shaders/x.comp" or just "x.comp" (looked up under shaders/). `defines` is
+ * its path under src/, e.g. "methods/afm/afm_build.comp". `defines` is
  * extra "#define X 1\n" lines or NULL. Compile errors name the original file
  * and line (see lu_gpu_translate_log). */
 lu_result lu_gpu_program_create(lu_gpu_context *ctx, const char *comp_name, const char *defines,

@@ -1,6 +1,6 @@
 /* lu_camera.h — pinhole camera rays (kernel: C and GLSL). Pixel (x, y) with
  * y = 0 at the top; pixel centres at +0.5, so one sample per pixel passes
- * through the centre (DESIGN.md §6). */
+ * through the centre (docs/architecture.md §7). */
 #ifndef LU_CAMERA_H
 #define LU_CAMERA_H
 

@@ -1,7 +1,7 @@
 /* lu_kernel.h — the common subset of C11 and GLSL 4.50 that kernel headers
  * are written in (the way PNanoVDB.h is one file for both).
  *
- * Rules for kernel headers (the .h files in src/kernels):
+ * Rules for kernel headers (lu_*.h in src/kernels and the method rooms):
  *   - include this file first; guard with #ifndef/#define (GLSL has them);
  *   - functions are declared `LU_FN float f(...)`; no pointers: use
  *     LU_INOUT(T)/LU_OUT(T) parameters, pass with LU_REF(x), read with LU_DEREF(x);
@@ -16,7 +16,8 @@
  *     `input`, `output`, `filter`, `common`, `partition`, `active`, `half`,
  *     `fixed`, `long`, `short`, `unsigned`, `double`, `patch`, `smooth`, ...),
  *     none containing `__`, none starting `gl_`;
- *   - include other kernel headers with `#include "name.h"` (same folder);
+ *   - include other kernel headers with `#include "name.h"` (same folder) or by their path
+ *     under src/ (`"methods/common/lu_march.h"`);
  *     `#include <...>` only inside `#ifndef LU_GLSL` (the assembler drops them).
  * The GPU backend (src/backends/gpu) prepends "#version 450 core" and
  * "#define LU_GLSL 1", resolves #include "..." lines from the sources embedded

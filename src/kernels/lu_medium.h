@@ -5,7 +5,7 @@
  * coefficients and phase. Density itself comes from the backend hook
  * lu_k_density(LU_CTX, m, p_index) (lu_kernel.h); constant media return
  * `density_scale` there. CPU drivers build records with lu_medium_to_kernel
- * (methods/gpu_scene.h); the GPU reads the same fields from the scene buffer
+ * (methods/common/gpu_scene.h); the GPU reads the same fields from the scene buffer
  * (kernels/lu_scene_gpu.glsl), so both backends see identical numbers. */
 #ifndef LU_MEDIUM_H
 #define LU_MEDIUM_H

@@ -85,7 +85,7 @@ LU_FN lu_k_light_sample lu_k_light_arrive(lu_k_light l, vec3 x) {
     return s;
 }
 
-/* Equirectangular mapping of a direction (DESIGN: u = 0.5 + atan2(x, -z)/2pi,
+/* Equirectangular mapping of a direction (u = 0.5 + atan2(x, -z)/2pi,
  * v = acos(y)/pi, v = 0 at the top) and back. */
 LU_FN float lu_k_env_u(vec3 d) { return 0.5f + lu_atan2(d.x, -d.z) * (0.5f * LU_K_INV_PI); }
 LU_FN float lu_k_env_v(vec3 d) { return lu_acos(lu_clamp(d.y, -1.0f, 1.0f)) * LU_K_INV_PI; }

@@ -1,4 +1,4 @@
-/* lu_scene_gpu.glsl — the shared GPU scene (methods/gpu_scene.h uploads it):
+/* lu_scene_gpu.glsl — the shared GPU scene (methods/common/gpu_scene.h uploads it):
  * camera, media records and density grids, lights, at the fixed bindings of
  * lu_scene_layout.h. Defines the backend hook
  *   float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index)

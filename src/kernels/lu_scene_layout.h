@@ -1,6 +1,6 @@
 /* lu_scene_layout.h — where the shared GPU scene lives (C and GLSL): binding
  * points of its storage buffers, texture units of its density grids, and the
- * record sizes. Included by methods/gpu_scene.h (C) and
+ * record sizes. Included by methods/common/gpu_scene.h (C) and
  * kernels/lu_scene_gpu.glsl, so the numbers exist once. Methods put their
  * own buffers at LU_SCENE_BINDING_FREE and above, their own samplers at
  * LU_SCENE_UNIT_FREE and above. */

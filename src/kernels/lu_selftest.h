@@ -1,5 +1,5 @@
 /* lu_selftest.h — one evaluation of many prelude functions, compiled as C by
- * tests/test_gpu.c and as GLSL by shaders/kernel_selftest.comp, so the test
+ * tests/test_gpu.c and as GLSL by kernels/kernel_selftest.comp, so the test
  * compares the two backends on the very same expressions.
  *
  * A case is LU_SELFTEST_IN floats: a.xyz, b.xyz, s, t, u, w. Operation k

@@ -1,4 +1,4 @@
-/* Scene JSON -> lu_scene (DESIGN.md §6). Strict: an unknown key, a wrong type,
+/* Scene JSON -> lu_scene (docs/architecture.md §7, docs/scene-format.md). Strict: an unknown key, a wrong type,
  * a duplicate key or an out-of-range number is an error naming the JSON path,
  * e.g. "scenes/smoke.json: $.lights[1].intensity: expected 3 numbers". */
 #include <lucent/lucent.h>

@@ -256,14 +256,9 @@ lu_result lu_gpu_assemble(const char *main_name, const char *defines, const lu_g
     asm_state st = {overlay, overlay_count, map, {0}, err};
     map->count = 0;
     const char *text = lookup(&st, main_name);
-    char alt[160];
-    if (!text && snprintf(alt, sizeof alt, "shaders/%s", main_name) < (int)sizeof alt) {
-        text = lookup(&st, alt);
-        if (text) main_name = alt;
-    }
     if (!text)
-        return lu_fail(err, LU_ERR_INVALID_ARG, "shader \"%s\": no such embedded source (nor shaders/%s)",
-                       main_name, main_name);
+        return lu_fail(err, LU_ERR_INVALID_ARG, "shader \"%s\": no such embedded source (names are paths under src/)",
+                       main_name);
 
     strcpy(map->names[0], "<preamble>");
     map->count = 1;

@@ -1,0 +1,161 @@
+/* The afm method's GPU passes (see afm.h): afm_build.comp fills the maps'
+ * records on the GPU from the shared GPU scene (grids as 3D textures) and
+ * the CPU's light views and bounded-media light spans; afm_render.comp
+ * marches the view rays with the CPU's camera hits/spans/normals and shadow
+ * maps. Both passes are dispatched in chunks (views, rows) so that no
+ * single dispatch runs long on a software rasteriser. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "backends/gpu.h"
+#include "methods/afm/afm.h"
+#include "methods/common/gpu_scene.h"
+
+/* render-pass buffers after the shared raymarch ones (lu_raymarch_gpu.glsl) */
+enum { R_HITS, R_SPANS, R_VIEWS, R_TABLE, R_SHADOW, R_NORMALS, R_AVIEWS, R_ATABLE, R_RECORDS, R_SURFACES, R_OUT, R_SURFVIS, R_COUNT };
+/* build-pass bindings (relative to LU_SCENE_BINDING_FREE) */
+enum { B_AVIEWS, B_LSPANS, B_RECORDS };
+
+struct lu_afm_gpu {
+    lu_gpu_context *ctx;
+    lu_gpu_program *build, *render;
+    lu_gpu_scene *scene;
+    lu_gpu_buffer *buf[R_COUNT];
+    lu_gpu_buffer *lspans;
+    unsigned shadow_version, map_version;
+    bool shadow_up, map_up;
+};
+
+lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *err) {
+    *out = NULL;
+    lu_afm_gpu *g = calloc(1, sizeof *g);
+    if (!g) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
+    lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/afm/afm_build.comp", NULL, &g->build, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/afm/afm_render.comp", NULL, &g->render, err);
+    if (r == LU_OK) r = lu_gpu_scene_create(g->ctx, scene, &g->scene, err);
+    if (r != LU_OK) {
+        lu_afm_gpu_destroy(g);
+        return r;
+    }
+    *out = g;
+    return LU_OK;
+}
+
+void lu_afm_gpu_destroy(lu_afm_gpu *g) {
+    if (!g) return;
+    for (int i = 0; i < R_COUNT; i++) lu_gpu_buffer_destroy(g->buf[i]);
+    lu_gpu_buffer_destroy(g->lspans);
+    lu_gpu_scene_destroy(g->scene);
+    lu_gpu_program_destroy(g->build);
+    lu_gpu_program_destroy(g->render);
+    lu_gpu_context_destroy(g->ctx);
+    free(g);
+}
+
+size_t lu_afm_gpu_limits(const lu_afm_gpu *g, bool *loop_cap) {
+    lu_gpu_info info;
+    lu_gpu_info_get(g->ctx, &info);
+    *loop_cap = info.loop_cap;
+    return info.max_ssbo_size > 0 ? (size_t)info.max_ssbo_size : 0;
+}
+
+static lu_result put(lu_afm_gpu *g, lu_gpu_buffer **slot, const void *data, size_t bytes, int binding, lu_error *err) {
+    return lu_gpu_buffer_put(g->ctx, slot, data, bytes, LU_SCENE_BINDING_FREE + binding, err);
+}
+
+static void set_map_uniforms(lu_gpu_program *p, const lu_afm_map *map) {
+    lu_gpu_uniform_int(p, "u_res", map->res);
+    lu_gpu_uniform_int(p, "u_coefs", map->coefs);
+    lu_gpu_uniform_int(p, "u_samples", map->samples);
+    lu_gpu_uniform_int(p, "u_channels", map->channels);
+}
+
+static lu_result build_maps(lu_afm_gpu *g, const lu_afm_map *map, lu_error *err) {
+    size_t texels = lu_afm_map_texels(map);
+    size_t rec_bytes = texels * (size_t)lu_afm_map_stride(map) * sizeof(float);
+    lu_result r = lu_gpu_scene_bind(g->scene, err);
+    bool same = g->map_up && g->map_version == map->version;
+    if (r == LU_OK)
+        r = put(g, &g->buf[R_AVIEWS], same ? NULL : map->views_packed,
+                (size_t)map->view_count * LU_RM_VIEW_FLOATS * sizeof(float), B_AVIEWS, err);
+    if (r == LU_OK && map->bounded)
+        r = put(g, &g->lspans, same ? NULL : map->lspans,
+                texels * (size_t)map->nm * LU_AFM_LSPAN_FLOATS * sizeof(float), B_LSPANS, err);
+    if (r == LU_OK && !map->bounded) r = put(g, &g->lspans, NULL, 16, B_LSPANS, err);
+    if (r == LU_OK) r = put(g, &g->buf[R_RECORDS], NULL, rec_bytes, B_RECORDS, err);
+    if (r != LU_OK) return r;
+    g->map_up = true;
+    g->map_version = map->version;
+    set_map_uniforms(g->build, map);
+    lu_gpu_uniform_int(g->build, "u_bounded", map->bounded ? 1 : 0);
+    unsigned groups = (unsigned)(map->res + 7) / 8;
+    for (int v = 0; v < map->view_count && r == LU_OK; v++) {
+        lu_gpu_uniform_int(g->build, "u_view0", v);
+        r = lu_gpu_dispatch(g->build, groups, groups, 1, err);
+    }
+    return r;
+}
+
+lu_result lu_afm_gpu_render(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_gpu_frame *f, lu_image *out,
+                            lu_error *err) {
+    const lu_media_rays *mr = f->mr;
+    const lu_afm_map *map = f->map;
+    int w = scene->camera.width, h = scene->camera.height;
+    size_t pixels = (size_t)w * h;
+    size_t nm = (size_t)scene->medium_count;
+    size_t shadow_texels = (size_t)mr->shadow_res * mr->shadow_res;
+    lu_result r = lu_gpu_scene_update(g->scene, scene, err);
+    if (r == LU_OK) r = build_maps(g, map, err);
+    /* render pass */
+    if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
+    if (r == LU_OK) r = put(g, &g->buf[R_HITS], mr->hits, pixels * LU_MR_HIT_FLOATS * sizeof(float), R_HITS, err);
+    if (r == LU_OK) r = put(g, &g->buf[R_SPANS], mr->spans, pixels * nm * 2 * sizeof(float), R_SPANS, err);
+    if (r == LU_OK)
+        r = put(g, &g->buf[R_VIEWS], mr->views_packed, (size_t)mr->view_count * LU_RM_VIEW_FLOATS * sizeof(float),
+                R_VIEWS, err);
+    if (r == LU_OK) r = put(g, &g->buf[R_TABLE], mr->view_table, (size_t)f->nl * 2 * sizeof(int), R_TABLE, err);
+    if (r == LU_OK) {
+        /* Shadow maps only change with the lights: skip the upload when the CPU kept them. */
+        bool same = g->shadow_up && g->shadow_version == mr->maps_version;
+        r = put(g, &g->buf[R_SHADOW], same ? NULL : mr->shadow, (size_t)mr->view_count * shadow_texels * sizeof(float),
+                R_SHADOW, err);
+        g->shadow_up = r == LU_OK;
+        g->shadow_version = mr->maps_version;
+    }
+    if (r == LU_OK)
+        r = put(g, &g->buf[R_NORMALS], mr->normals, pixels * nm * LU_MR_NORMAL_FLOATS * sizeof(float), R_NORMALS, err);
+    if (r == LU_OK) r = lu_gpu_buffer_bind(g->buf[R_AVIEWS], LU_SCENE_BINDING_FREE + R_AVIEWS, err);
+    if (r == LU_OK) r = put(g, &g->buf[R_ATABLE], map->view_table, (size_t)f->nl * 2 * sizeof(int), R_ATABLE, err);
+    if (r == LU_OK) r = lu_gpu_buffer_bind(g->buf[R_RECORDS], LU_SCENE_BINDING_FREE + R_RECORDS, err);
+    if (r == LU_OK) r = put(g, &g->buf[R_SURFACES], f->surfaces, nm * LU_AFM_SURFACE_FLOATS * sizeof(float), R_SURFACES, err);
+    if (r == LU_OK) r = put(g, &g->buf[R_OUT], NULL, pixels * 3 * sizeof(float), R_OUT, err);
+    if (r == LU_OK)
+        r = put(g, &g->buf[R_SURFVIS], mr->surface_vis, pixels * (size_t)f->nl * sizeof(float), R_SURFVIS, err);
+    if (r != LU_OK) return r;
+    lu_gpu_program *p = g->render;
+    set_map_uniforms(p, map);
+    lu_gpu_uniform_int(p, "u_map_res", f->shadow_res);
+    lu_gpu_uniform_float(p, "u_step", f->step);
+    lu_gpu_uniform_float(p, "u_eps", f->eps);
+    lu_gpu_uniform_int(p, "u_jitter", f->jitter);
+    lu_gpu_uniform_vec3(p, "u_background", f->background.x, f->background.y, f->background.z);
+    const int rows = 64;
+    for (int y0 = 0; y0 < h && r == LU_OK; y0 += rows) {
+        lu_gpu_uniform_int(p, "u_row0", y0);
+        int n = h - y0 < rows ? h - y0 : rows;
+        r = lu_gpu_dispatch(p, (unsigned)(w + 7) / 8, (unsigned)(n + 7) / 8, 1, err);
+    }
+    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[R_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    return r;
+}
+
+lu_result lu_afm_gpu_build_download(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_map *map, float *records,
+                                    lu_error *err) {
+    lu_result r = lu_gpu_scene_update(g->scene, scene, err);
+    if (r == LU_OK) r = build_maps(g, map, err);
+    if (r == LU_OK)
+        r = lu_gpu_buffer_download(g->buf[R_RECORDS], 0, records,
+                                   lu_afm_map_texels(map) * (size_t)lu_afm_map_stride(map) * sizeof(float), err);
+    return r;
+}

@@ -1,0 +1,117 @@
+/* The bssrdf method's GPU pass (see bssrdf_gpu.h). */
+#include "methods/bssrdf/bssrdf_gpu.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "backends/gpu.h"
+
+enum { B_DATA, B_SHADOW, B_SPLATS, B_GBUF, B_TSTART, B_TLIST, B_OUT, B_SCATTER, B_COUNT };
+
+/* Splats one dispatch sums per tile: under llvmpipe's 65535 loop iterations
+ * per invocation (bssrdf.comp) with room for the shading pass's loops. */
+#define LU_BSSRDF_GPU_CHUNK 32768
+
+struct lu_bssrdf_gpu {
+    lu_gpu_context *ctx;
+    lu_gpu_program *prog;
+    lu_gpu_buffer *buf[B_COUNT];
+    size_t size[B_COUNT];
+    float *staging;           /* the concatenated fetch arrays */
+    size_t staging_cap;
+};
+
+lu_result lu_bssrdf_gpu_create(lu_bssrdf_gpu **out, lu_error *err) {
+    *out = NULL;
+    lu_bssrdf_gpu *g = calloc(1, sizeof *g);
+    if (!g) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+    lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/bssrdf/bssrdf.comp", NULL, &g->prog, err);
+    if (r != LU_OK) {
+        lu_bssrdf_gpu_destroy(g);
+        return r;
+    }
+    *out = g;
+    return LU_OK;
+}
+
+void lu_bssrdf_gpu_destroy(lu_bssrdf_gpu *g) {
+    if (!g) return;
+    for (int i = 0; i < B_COUNT; i++) lu_gpu_buffer_destroy(g->buf[i]);
+    lu_gpu_program_destroy(g->prog);
+    lu_gpu_context_destroy(g->ctx);
+    free(g->staging);
+    free(g);
+}
+
+/* Uploads into buffer slot i, growing it when needed; binds it at i. */
+static lu_result put(lu_bssrdf_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
+    if (bytes == 0) bytes = 16, data = NULL;
+    if (!g->buf[i] || g->size[i] < bytes) {
+        lu_gpu_buffer_destroy(g->buf[i]);
+        g->buf[i] = NULL;
+        size_t cap = g->size[i] ? g->size[i] : 4096;
+        while (cap < bytes) cap *= 2;
+        lu_result r = lu_gpu_buffer_create(g->ctx, cap, NULL, &g->buf[i], err);
+        if (r != LU_OK) return r;
+        g->size[i] = cap;
+    }
+    if (data) {
+        lu_result r = lu_gpu_buffer_upload(g->buf[i], 0, data, bytes, err);
+        if (r != LU_OK) return r;
+    }
+    return lu_gpu_buffer_bind(g->buf[i], i, err);
+}
+
+lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, lu_image *out, lu_error *err) {
+    size_t total = 0, off[6];
+    for (int b = 0; b < 6; b++) {
+        off[b] = total;
+        total += f->count[b];
+    }
+    if (total > (size_t)INT32_MAX) return lu_fail(err, LU_ERR_LIMIT, "bssrdf: GPU data of %zu floats", total);
+    if (total > g->staging_cap) {
+        float *s = realloc(g->staging, total * sizeof *s);
+        if (!s) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+        g->staging = s;
+        g->staging_cap = total;
+    }
+    for (int b = 0; b < 6; b++) memcpy(g->staging + off[b], f->buf[b], f->count[b] * sizeof(float));
+    size_t pixels = (size_t)f->width * f->height;
+    int ntiles = f->tiles_x * f->tiles_y;
+    lu_result r = put(g, B_DATA, g->staging, total * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_SHADOW, f->shadow, f->shadow_count * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_SPLATS, f->splats, (size_t)f->splat_count * f->splat_bytes, err);
+    if (r == LU_OK) r = put(g, B_GBUF, f->gbuf, pixels * 32, err);
+    if (r == LU_OK) r = put(g, B_TSTART, f->tile_start, ((size_t)ntiles + 1) * sizeof(int), err);
+    if (r == LU_OK) r = put(g, B_TLIST, f->tile_list, f->list_count * sizeof(int), err);
+    if (r == LU_OK) r = put(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
+    if (r != LU_OK) return r;
+    for (int b = 0; b < 6; b++) {
+        char name[32];
+        snprintf(name, sizeof name, "u_buf_off[%d]", b);
+        lu_gpu_uniform_int(g->prog, name, (int)off[b]);
+    }
+    lu_gpu_uniform_int(g->prog, "u_map_res", f->map_res);
+    lu_gpu_uniform_int(g->prog, "u_width", f->width);
+    lu_gpu_uniform_int(g->prog, "u_height", f->height);
+    lu_gpu_uniform_int(g->prog, "u_tiles_x", f->tiles_x);
+    lu_gpu_uniform_vec3(g->prog, "u_cam_right", f->cam_right.x, f->cam_right.y, f->cam_right.z);
+    lu_gpu_uniform_vec3(g->prog, "u_cam_up", f->cam_up.x, f->cam_up.y, f->cam_up.z);
+    lu_gpu_uniform_vec3(g->prog, "u_cam_forward", f->cam_forward.x, f->cam_forward.y, f->cam_forward.z);
+    if (r == LU_OK) r = put(g, B_SCATTER, NULL, pixels * 4 * sizeof(float), err);
+    int longest = 0;
+    for (int t = 0; t < ntiles; t++)
+        if (f->tile_start[t + 1] - f->tile_start[t] > longest) longest = f->tile_start[t + 1] - f->tile_start[t];
+    lu_gpu_uniform_int(g->prog, "u_chunk_len", LU_BSSRDF_GPU_CHUNK);
+    for (int k0 = 0; r == LU_OK; k0 += LU_BSSRDF_GPU_CHUNK) {
+        int last = k0 + LU_BSSRDF_GPU_CHUNK >= longest;
+        lu_gpu_uniform_int(g->prog, "u_chunk_begin", k0);
+        lu_gpu_uniform_int(g->prog, "u_finish", last);
+        r = lu_gpu_dispatch(g->prog, (unsigned)f->tiles_x, (unsigned)f->tiles_y, 1, err);
+        if (last) break;
+    }
+    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    return r;
+}

@@ -1,0 +1,186 @@
+/* The shared GPU scene (see gpu_scene.h). */
+#include "methods/common/gpu_scene.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "methods/methods.h"
+
+struct lu_gpu_scene {
+    lu_gpu_context *ctx;
+    int medium_count;
+    int grid_dims[LU_SCENE_MAX_MEDIA][3];    /* 0 for constant media */
+    lu_gpu_texture *grid[LU_SCENE_MAX_MEDIA];
+    lu_gpu_buffer *header, *media, *lights;
+    size_t lights_bytes;
+};
+
+lu_k_medium lu_medium_to_kernel(const lu_medium *m) {
+    lu_k_medium k;
+    memset(&k, 0, sizeof k);
+    bool grid = m->kind == LU_DENSITY_GRID;
+    const lu_affine a = grid ? m->world_to_index : lu_affine_identity();
+    k.w2i_x = lu_v3(a.m[0][0], a.m[0][1], a.m[0][2]);
+    k.w2i_y = lu_v3(a.m[1][0], a.m[1][1], a.m[1][2]);
+    k.w2i_z = lu_v3(a.m[2][0], a.m[2][1], a.m[2][2]);
+    k.w2i_t = lu_v3(a.m[0][3], a.m[1][3], a.m[2][3]);
+    if (grid) {
+        lu_aabb s = lu_grid_index_support(&m->grid);
+        k.support_lo = s.lo;
+        k.support_hi = s.hi;
+    } else {
+        k.support_lo = m->bounds.lo;
+        k.support_hi = m->bounds.hi;
+    }
+    k.bounds_lo = m->bounds.lo;
+    k.bounds_hi = m->bounds.hi;
+    k.sigma_a = m->sigma_a;
+    k.sigma_s = m->sigma_s;
+    k.g = m->phase_g;
+    k.density_scale = grid ? 1.0f : m->constant;
+    k.eta = m->eta;
+    k.constant = grid ? 0 : 1;
+    k.bounded = m->has_boundary ? 1 : 0;
+    k.max_pieces = grid ? m->grid.nx + m->grid.ny + m->grid.nz + 8 : 1;
+    return k;
+}
+
+int lu_scene_kernel_lights(const lu_scene *scene, lu_k_light *out) {
+    int n = 0;
+    for (int l = 0; l < scene->light_count; l++)
+        if (scene->lights[l].type != LU_LIGHT_ENVIRONMENT) out[n++] = lu_light_to_kernel(&scene->lights[l]);
+    return n;
+}
+
+static void put4(float *dst, lu_vec3 v, float w) {
+    dst[0] = v.x;
+    dst[1] = v.y;
+    dst[2] = v.z;
+    dst[3] = w;
+}
+
+/* Packs the records (layout in kernels/lu_scene_gpu.glsl) and uploads them. */
+static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_error *err) {
+    const lu_camera *c = &scene->camera;
+    lu_k_camera cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
+    int nl = scene->light_count > 0 ? scene->light_count : 1;
+    lu_k_light *kl = calloc((size_t)nl, sizeof *kl);
+    float *lights = calloc((size_t)nl * LU_SCENE_LIGHT_VEC4 * 4, sizeof(float));
+    float media[LU_SCENE_MAX_MEDIA * LU_SCENE_MEDIUM_VEC4 * 4];
+    if (!kl || !lights) {
+        free(kl);
+        free(lights);
+        return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
+    }
+    int light_count = lu_scene_kernel_lights(scene, kl);
+    for (int l = 0; l < light_count; l++) {
+        float *p = lights + (size_t)l * LU_SCENE_LIGHT_VEC4 * 4;
+        put4(p, kl[l].position, (float)kl[l].type);
+        put4(p + 4, kl[l].direction, kl[l].cos_inner);
+        put4(p + 8, kl[l].intensity, kl[l].cos_outer);
+    }
+    memset(media, 0, sizeof media);
+    for (int m = 0; m < scene->medium_count; m++) {
+        lu_k_medium k = lu_medium_to_kernel(&scene->media[m]);
+        float *p = media + (size_t)m * LU_SCENE_MEDIUM_VEC4 * 4;
+        put4(p, k.w2i_x, k.w2i_t.x);
+        put4(p + 4, k.w2i_y, k.w2i_t.y);
+        put4(p + 8, k.w2i_z, k.w2i_t.z);
+        put4(p + 12, k.support_lo, (float)k.max_pieces);
+        put4(p + 16, k.support_hi, k.density_scale);
+        put4(p + 20, k.sigma_a, k.g);
+        put4(p + 24, k.sigma_s, (float)k.constant);
+        put4(p + 28, k.bounds_lo, (float)k.bounded);
+        put4(p + 32, k.bounds_hi, k.eta);
+    }
+    float header[LU_SCENE_HEADER_VEC4 * 4];
+    put4(header, c->position, (float)c->width);
+    put4(header + 4, cam.right, (float)c->height);
+    put4(header + 8, cam.up, (float)scene->medium_count);
+    put4(header + 12, cam.forward, (float)light_count);
+
+    lu_result r = LU_OK;
+    size_t lbytes = (size_t)nl * LU_SCENE_LIGHT_VEC4 * 4 * sizeof(float);
+    if (gs->lights && gs->lights_bytes < lbytes) {
+        lu_gpu_buffer_destroy(gs->lights);
+        gs->lights = NULL;
+    }
+    if (!gs->lights) {
+        r = lu_gpu_buffer_create(gs->ctx, lbytes, lights, &gs->lights, err);
+        gs->lights_bytes = lbytes;
+    } else {
+        r = lu_gpu_buffer_upload(gs->lights, 0, lights, lbytes, err);
+    }
+    if (r == LU_OK) {
+        if (!gs->media) r = lu_gpu_buffer_create(gs->ctx, sizeof media, media, &gs->media, err);
+        else r = lu_gpu_buffer_upload(gs->media, 0, media, sizeof media, err);
+    }
+    if (r == LU_OK) {
+        if (!gs->header) r = lu_gpu_buffer_create(gs->ctx, sizeof header, header, &gs->header, err);
+        else r = lu_gpu_buffer_upload(gs->header, 0, header, sizeof header, err);
+    }
+    free(kl);
+    free(lights);
+    return r;
+}
+
+lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu_scene **out, lu_error *err) {
+    *out = NULL;
+    if (!ctx || !scene) return lu_fail(err, LU_ERR_INVALID_ARG, "gpu scene: no context or scene");
+    if (scene->medium_count > LU_SCENE_MAX_MEDIA)
+        return lu_fail(err, LU_ERR_LIMIT, "gpu scene: %d media, the GPU backend takes at most %d",
+                       scene->medium_count, LU_SCENE_MAX_MEDIA);
+    lu_gpu_scene *gs = calloc(1, sizeof *gs);
+    if (!gs) return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
+    gs->ctx = ctx;
+    gs->medium_count = scene->medium_count;
+    lu_result r = LU_OK;
+    for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
+        const lu_medium *med = &scene->media[m];
+        if (med->kind != LU_DENSITY_GRID) continue;
+        gs->grid_dims[m][0] = med->grid.nx;
+        gs->grid_dims[m][1] = med->grid.ny;
+        gs->grid_dims[m][2] = med->grid.nz;
+        r = lu_gpu_texture3d_create(ctx, med->grid.nx, med->grid.ny, med->grid.nz, med->grid.data, &gs->grid[m], err);
+    }
+    if (r == LU_OK) r = upload_records(gs, scene, err);
+    if (r != LU_OK) {
+        lu_gpu_scene_destroy(gs);
+        return r;
+    }
+    *out = gs;
+    return LU_OK;
+}
+
+lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, lu_error *err) {
+    if (scene->medium_count != gs->medium_count)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "gpu scene: the scene has %d media, %d were uploaded",
+                       scene->medium_count, gs->medium_count);
+    for (int m = 0; m < scene->medium_count; m++) {
+        const lu_medium *med = &scene->media[m];
+        bool grid = med->kind == LU_DENSITY_GRID;
+        if ((grid != (gs->grid[m] != NULL)) ||
+            (grid && (med->grid.nx != gs->grid_dims[m][0] || med->grid.ny != gs->grid_dims[m][1] ||
+                      med->grid.nz != gs->grid_dims[m][2])))
+            return lu_fail(err, LU_ERR_INVALID_ARG, "gpu scene: medium %d's grid changed since the upload", m);
+    }
+    return upload_records(gs, scene, err);
+}
+
+lu_result lu_gpu_scene_bind(lu_gpu_scene *gs, lu_error *err) {
+    lu_result r = lu_gpu_buffer_bind(gs->header, LU_SCENE_BINDING_HEADER, err);
+    if (r == LU_OK) r = lu_gpu_buffer_bind(gs->media, LU_SCENE_BINDING_MEDIA, err);
+    if (r == LU_OK) r = lu_gpu_buffer_bind(gs->lights, LU_SCENE_BINDING_LIGHTS, err);
+    for (int m = 0; m < gs->medium_count && r == LU_OK; m++)
+        if (gs->grid[m]) r = lu_gpu_texture_bind(gs->grid[m], LU_SCENE_UNIT_GRID0 + m, err);
+    return r;
+}
+
+void lu_gpu_scene_destroy(lu_gpu_scene *gs) {
+    if (!gs) return;
+    for (int m = 0; m < LU_SCENE_MAX_MEDIA; m++) lu_gpu_texture_destroy(gs->grid[m]);
+    lu_gpu_buffer_destroy(gs->header);
+    lu_gpu_buffer_destroy(gs->media);
+    lu_gpu_buffer_destroy(gs->lights);
+    free(gs);
+}

@@ -1,0 +1,54 @@
+/* The view march's frame (view_march.h): step length and the per-pixel
+ * buffers of one frame, and its kernel parameter record. */
+#include <lucent/lucent.h>
+
+#include "methods/common/view_march.h"
+
+/* The kernel is included only for its records; no hook is called here. */
+struct lu_k_ctx {
+    const lu_medium *media;
+    const lu_k_medium *km;
+    int nm;
+    const lu_k_light *kl;
+    int nl;
+    const lu_view_march_frame *f;
+    const lu_k_lightview *views;
+};
+
+#include "methods/common/view_march_hooks.h"
+#include "methods/common/lu_view_march.h"
+
+void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, const lu_media_rays *mr, int steps, float eps,
+                            int jitter, int nl) {
+    lu_aabb mb = lu_scene_media_bounds(scene);
+    float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;
+    f->width = scene->camera.width;
+    f->height = scene->camera.height;
+    f->background = scene->background;
+    f->step = fmaxf(diag, 1e-6f) / (float)steps;
+    f->eps = eps;
+    f->jitter = jitter;
+    f->map_res = mr->shadow_res;
+    f->medium_count = scene->medium_count;
+    f->light_count = nl;
+    f->hits = mr->hits;
+    f->spans = mr->spans;
+    f->view_count = mr->view_count;
+    f->views = mr->views_packed;
+    f->view_table = mr->view_table;
+    f->shadow = mr->shadow;
+    f->surface_vis = mr->surface_vis;
+    f->maps_version = mr->maps_version;
+    f->max_steps = steps;
+}
+
+lu_k_rm_params lu_view_march_frame_params(const lu_view_march_frame *f) {
+    lu_k_rm_params P;
+    P.background = f->background;
+    P.step = f->step;
+    P.eps = f->eps;
+    P.jitter = f->jitter;
+    P.map_res = f->map_res;
+    P.pad = 0;
+    return P;
+}

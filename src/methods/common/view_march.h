@@ -1,0 +1,44 @@
+/* Internal: the view march shared by raymarch, afm and the gradient family —
+ * what one frame of it hands to a backend (CPU loop or GPU pass). The CPU
+ * builds it (Embree hits, spans, shadow maps) so both backends read
+ * identical inputs; the per-pixel math is methods/common/lu_view_march.h. */
+#ifndef LU_METHODS_VIEW_MARCH_H
+#define LU_METHODS_VIEW_MARCH_H
+
+#include <lucent/lucent.h>
+
+#include "kernels/lu_camera.h"
+#include "methods/common/lu_lightview.h"
+#include "kernels/lu_medium.h"
+#include "kernels/lu_optics.h"
+#include "methods/common/media_ray.h"
+
+/* Loop iterations one GPU invocation may run: Mesa's llvmpipe ends every
+ * loop of an invocation after 65535 in total (tests/test_gpu.c), so the GPU
+ * march is dispatched in segments that stay below this. */
+#define LU_RM_LOOP_BUDGET 60000
+
+typedef struct lu_view_march_frame {
+    int width, height;
+    /* lu_k_rm_params fields */
+    lu_vec3 background;
+    float step, eps;
+    int jitter, map_res;
+    int medium_count, light_count;   /* light_count: non-environment lights */
+    const float *hits;               /* width*height*LU_K_RM_HIT_FLOATS */
+    const float *spans;              /* width*height*medium_count*2 */
+    int view_count;
+    const float *views;              /* view_count*LU_RM_VIEW_FLOATS */
+    const int *view_table;           /* light_count*2: first view, view count */
+    const float *shadow;             /* view_count*map_res*map_res depths */
+    const float *surface_vis;        /* width*height*light_count: exact opaque visibility of each light
+                                      * at each camera hit (lu_media_rays_surface_vis) */
+    unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
+    int max_steps;                   /* most march steps any camera ray takes (media diagonal / step) */
+} lu_view_march_frame;
+
+/* The frame of one view march over mr's inputs: step = media-box diagonal / steps. */
+void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, const lu_media_rays *mr, int steps, float eps,
+                            int jitter, int nl);
+
+#endif

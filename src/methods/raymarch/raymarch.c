@@ -1,0 +1,160 @@
+/* raymarch — fixed-step single scattering sharing the reference's kernels
+ * (exact optical depth to the lights, HG phase, light arrival), on the CPU
+ * and the GPU from one kernel (methods/common/lu_view_march.h). Per frame the CPU
+ * builds the inputs both backends read: the camera rays' first opaque hits
+ * and bounded-media spans (Embree), each light's exact visibility at those
+ * hits (one Embree occlusion ray per pixel and light) and shadow maps of the
+ * opaque objects (lightview.h) for the samples in the media, since the GPU
+ * has no ray tracer. */
+#include <lucent/lucent.h>
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "methods/common/gpu_scene.h"
+#include "methods/methods.h"
+#include "methods/raymarch/raymarch.h"
+
+/* ---- kernel context: the hooks of lu_view_march.h on the CPU ---- */
+struct lu_k_ctx {
+    const lu_medium *media;
+    const lu_k_medium *km;
+    int nm;
+    const lu_k_light *kl;
+    int nl;
+    const lu_view_march_frame *f;
+    const lu_k_lightview *views;
+};
+
+#include "methods/common/view_march_hooks.h"
+
+/* A camera-visible surface is lit with the exact visibility the CPU traced
+ * (media_ray.h), as afm does: a shadow map leaks light at the edges of thin
+ * occluders (dusty_room's sun through the window: 0.32 rel-L2 with the map,
+ * 0.015 without, docs/gpu.md). The samples in the media keep the maps. */
+static inline float lu_k_rm_surface_vis(const struct lu_k_ctx *c, int pixel, int l) {
+    return c->f->surface_vis[(size_t)pixel * c->nl + l];
+}
+#define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_rm_surface_vis(LU_CTX, pixel, l)
+
+#include "methods/common/lu_view_march.h"
+
+enum { P_STEPS, P_JITTER, P_SHADOW_RES, P_COUNT };
+
+static const lu_param_desc k_params[P_COUNT] = {
+    [P_STEPS] = {"steps", LU_PARAM_INT, 256, 4, 16384, NULL,
+                 "march steps across the diagonal of the media's box (step length = diagonal / steps)"},
+    [P_JITTER] = {"jitter", LU_PARAM_BOOL, 0, 0, 1, NULL,
+                  "shift each pixel's samples by a per-pixel hash within a step (noise instead of banding)"},
+    [P_SHADOW_RES] = {"shadow_res", LU_PARAM_INT, 512, 16, 4096, NULL,
+                      "shadow map resolution per light view (opaque objects only; media use exact optical depth)"},
+};
+
+typedef struct rm_state {
+    lu_backend backend;
+    int steps, jitter, res;
+    lu_media_rays mr;          /* camera hits/spans, light views, shadow maps */
+    lu_k_medium *km;
+    lu_k_light *kl;
+    int nl;
+    float eps;
+    lu_view_march_frame frame;
+    const lu_scene *scene;
+    struct lu_k_ctx kctx;
+    lu_k_camera cam;
+    lu_image *out;
+    lu_raymarch_gpu *gpu;
+} rm_state;
+
+_Static_assert(LU_MR_HIT_FLOATS == LU_K_RM_HIT_FLOATS, "camera hit layout");
+
+static void rm_destroy(void *state) {
+    rm_state *st = state;
+    if (!st) return;
+    lu_raymarch_gpu_destroy(st->gpu);
+    lu_media_rays_free(&st->mr);
+    free(st->km);
+    free(st->kl);
+    free(st);
+}
+
+static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
+                            lu_error *err) {
+    rm_state *st = calloc(1, sizeof *st);
+    if (!st) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
+    st->backend = backend;
+    st->steps = (int)params[P_STEPS];
+    st->jitter = (int)params[P_JITTER];
+    st->res = (int)params[P_SHADOW_RES];
+    lu_result r = LU_OK;
+    if (scene->medium_count > LU_K_RM_MAX_MEDIA)
+        r = lu_fail(err, LU_ERR_LIMIT, "raymarch: %d media (at most %d)", scene->medium_count, LU_K_RM_MAX_MEDIA);
+    st->eps = lu_scene_ray_epsilon(scene);
+    if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, st->res, false, err);
+    st->km = calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *st->km);
+    if (!st->km && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
+    if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_raymarch_gpu_create(scene, &st->gpu, err);
+    if (r != LU_OK) {
+        rm_destroy(st);
+        return r;
+    }
+    *out = st;
+    return LU_OK;
+}
+
+static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    (void)thread;
+    rm_state *st = ctx;
+    const lu_camera *c = &st->scene->camera;
+    lu_k_rm_params P = lu_view_march_frame_params(&st->frame);
+    for (int64_t y = begin; y < end; y++) {
+        for (int x = 0; x < c->width; x++) {
+            int px = (int)(y * c->width + x);
+            lu_vec3 d = lu_k_camera_dir(st->cam, (float)x + 0.5f, (float)y + 0.5f);
+            lu_vec3 L = lu_k_rm_radiance(&st->kctx, P, px, c->position, d, lu_k_rm_jitter(P.jitter, px));
+            float *o = lu_image_px(st->out, x, (int)y);
+            o[0] = L.x;
+            o[1] = L.y;
+            o[2] = L.z;
+        }
+    }
+}
+
+static lu_result rm_render(void *state, const lu_scene *scene, lu_image *out, lu_error *err) {
+    rm_state *st = state;
+    if (scene->medium_count != st->mr.medium_count)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "raymarch: the scene's media changed since prepare");
+    st->scene = scene;
+    st->out = out;
+    const lu_camera *c = &scene->camera;
+    st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
+    for (int m = 0; m < scene->medium_count; m++) st->km[m] = lu_medium_to_kernel(&scene->media[m]);
+    lu_k_light *kl = realloc(st->kl, (scene->light_count ? (size_t)scene->light_count : 1u) * sizeof *kl);
+    if (!kl) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
+    st->kl = kl;
+    int nl = lu_scene_kernel_lights(scene, kl);
+    st->nl = nl;
+    lu_result r = lu_media_rays_camera(&st->mr, scene, st->cam, err);
+    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, scene, kl, nl, err);
+    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, scene, st->cam, kl, nl, st->eps, err);
+    if (r != LU_OK) return r;
+
+    lu_view_march_frame *f = &st->frame;
+    lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl);
+    if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, f, out, err);
+    st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, nl, f, st->mr.views};
+    lu_parallel_for(c->height, 1, render_rows, st, NULL);
+    return LU_OK;
+}
+
+const lu_method lu_method_raymarch = {
+    .name = "raymarch",
+    .summary = "fixed-step single scattering with exact shadow-ray optical depth, shadow maps in the media and "
+               "exact surface visibility (CPU and GPU, one kernel)",
+    .backends = LU_BACKEND_CPU | LU_BACKEND_GPU,
+    .params = k_params,
+    .param_count = P_COUNT,
+    .prepare = rm_prepare,
+    .render = rm_render,
+    .destroy = rm_destroy,
+};
