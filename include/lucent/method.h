@@ -48,6 +48,21 @@ typedef struct lu_progressive {
     int every;
 } lu_progressive;
 
+/* What can change between two frames of one renderer (lu_renderer_invalidate,
+ * and the frame stage's record of a frame). */
+typedef enum lu_change {
+    LU_CHANGE_CAMERA = 1u << 0,      /* position, look_at, up, fov, size */
+    LU_CHANGE_LIGHTS = 1u << 1,      /* any light: count, type, position, direction, intensity, cone, map */
+    LU_CHANGE_MEDIA = 1u << 2,       /* a medium's coefficients, phase, density values (grid generation) */
+    LU_CHANGE_GEOMETRY = 1u << 3,    /* objects and their materials, boundary meshes, media transforms and boxes */
+    LU_CHANGE_BACKGROUND = 1u << 4,
+    LU_CHANGE_ALL = (1u << 5) - 1u
+} lu_change;
+
+/* One frame: its scene and what changed since the renderer's previous frame
+ * (defined by the library's frame stage, src/methods/frame.h). */
+typedef struct lu_frame lu_frame;
+
 typedef struct lu_method {
     const char *name;
     const char *summary;
@@ -57,11 +72,12 @@ typedef struct lu_method {
     /* params: resolved values in descriptor order (choices as indices). */
     lu_result (*prepare)(const lu_scene *scene, const double *params, lu_backend backend, void **state,
                          lu_error *err);
-    /* out is created by the caller at the camera's size. */
-    lu_result (*render)(void *state, const lu_scene *scene, lu_image *out, lu_error *err);
+    /* out is created by the caller at the camera's size; frame->scene is the
+     * scene to render, frame->changed what changed since the previous frame. */
+    lu_result (*render)(void *state, const lu_frame *frame, lu_image *out, lu_error *err);
     void (*destroy)(void *state);
     /* Optional (NULL for one-shot methods): render with progressive output. */
-    lu_result (*render_progressive)(void *state, const lu_scene *scene, lu_image *out, const lu_progressive *prog,
+    lu_result (*render_progressive)(void *state, const lu_frame *frame, lu_image *out, const lu_progressive *prog,
                                     lu_error *err);
 } lu_method;
 
@@ -82,6 +98,7 @@ typedef struct lu_renderer {
     double prepare_ms;       /* wall time of the prepare step */
     double last_render_ms;   /* wall time of the latest render */
     lu_progressive progressive;  /* see lu_renderer_set_progressive */
+    struct lu_frame_stage *stage;   /* what the previous frame rendered (internal) */
 } lu_renderer;
 
 lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu_kvlist *settings,
@@ -93,6 +110,18 @@ void lu_renderer_destroy(lu_renderer *r);
  * (fn NULL or every <= 0: off). Returns false if the method renders in one
  * shot (it then ignores the request). */
 bool lu_renderer_set_progressive(lu_renderer *r, lu_progressive_fn fn, void *user, int every);
+
+/* Change tracking needs no calls: each render compares its scene with the
+ * previous frame's and rebuilds only what depends on a change. Invalidate
+ * declares a change it cannot see (lu_change bits), e.g. grid values written
+ * through grid.data instead of lu_grid_set_values, or mesh vertices moved in
+ * place. */
+void lu_renderer_invalidate(lu_renderer *r, unsigned what);
+/* How often the named cached product (e.g. "afm.maps", "media_rays.camera")
+ * was built since create; 0 for a product this method does not have. */
+uint64_t lu_renderer_rebuilds(const lu_renderer *r, const char *product);
+/* The products' names and counts, up to max of them; returns how many exist. */
+int lu_renderer_products(const lu_renderer *r, const char **names, uint64_t *counts, int max);
 
 #ifdef __cplusplus
 }

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "methods/frame.h"
 #include "methods/methods.h"
 
 static const lu_method *const k_methods[] = {
@@ -136,12 +137,14 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
     rd->method = m;
     rd->backend = backend;
     r = lu_method_resolve_params(m, settings, rd->params, err);
+    if (r == LU_OK) r = lu_frame_stage_create(&rd->stage, err);
     if (r == LU_OK) {
         double t0 = lu_time_seconds();
         r = m->prepare(scene, rd->params, backend, &rd->state, err);
         rd->prepare_ms = 1e3 * (lu_time_seconds() - t0);
     }
     if (r != LU_OK) {
+        lu_frame_stage_destroy(rd->stage);
         free(rd);
         return r;
     }
@@ -159,11 +162,14 @@ lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *ou
                        out->height, c->width, c->height);
     }
     double t0 = lu_time_seconds();
+    lu_frame frame;
+    lu_frame_stage_begin(r->stage, scene, &frame);
     lu_result e = r->progressive.fn && r->method->render_progressive
-                      ? r->method->render_progressive(r->state, scene, out, &r->progressive, err)
-                      : r->method->render(r->state, scene, out, err);
+                      ? r->method->render_progressive(r->state, &frame, out, &r->progressive, err)
+                      : r->method->render(r->state, &frame, out, err);
+    lu_result s = lu_frame_stage_end(r->stage, scene, e == LU_OK, err);
     r->last_render_ms = 1e3 * (lu_time_seconds() - t0);
-    return e;
+    return e != LU_OK ? e : s;
 }
 
 bool lu_renderer_set_progressive(lu_renderer *r, lu_progressive_fn fn, void *user, int every) {
@@ -176,5 +182,24 @@ bool lu_renderer_set_progressive(lu_renderer *r, lu_progressive_fn fn, void *use
 void lu_renderer_destroy(lu_renderer *r) {
     if (!r) return;
     r->method->destroy(r->state);
+    lu_frame_stage_destroy(r->stage);
     free(r);
+}
+
+void lu_renderer_invalidate(lu_renderer *r, unsigned what) { lu_frame_stage_invalidate(r->stage, what); }
+
+uint64_t lu_renderer_rebuilds(const lu_renderer *r, const char *product) {
+    const lu_frame_stats *st = lu_frame_stage_stats(r->stage);
+    for (int i = 0; i < st->count; i++)
+        if (strcmp(st->product[i].name, product) == 0) return st->product[i].rebuilds;
+    return 0;
+}
+
+int lu_renderer_products(const lu_renderer *r, const char **names, uint64_t *counts, int max) {
+    const lu_frame_stats *st = lu_frame_stage_stats(r->stage);
+    for (int i = 0; i < st->count && i < max; i++) {
+        if (names) names[i] = st->product[i].name;
+        if (counts) counts[i] = st->product[i].rebuilds;
+    }
+    return st->count;
 }

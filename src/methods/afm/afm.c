@@ -23,6 +23,7 @@
 #include "methods/afm/afm.h"
 #include "methods/common/gpu_scene.h"
 #include "methods/common/lightview.h"
+#include "methods/frame.h"
 #include "methods/methods.h"
 #include "methods/raymarch/raymarch.h"
 
@@ -373,7 +374,8 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     }
 }
 
-static lu_result afm_render(void *state, const lu_scene *scene, lu_image *out, lu_error *err) {
+static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
+    const lu_scene *scene = frame->scene;
     afm_state *st = state;
     if (scene->medium_count != st->mr.medium_count)
         return lu_fail(err, LU_ERR_INVALID_ARG, "afm: the scene's media changed since prepare");
@@ -394,9 +396,9 @@ static lu_result afm_render(void *state, const lu_scene *scene, lu_image *out, l
     if (!kl) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
     st->kl = kl;
     int nl = lu_scene_kernel_lights(scene, kl);
-    lu_result r = lu_media_rays_camera(&st->mr, scene, st->cam, err);
-    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, scene, kl, nl, err);
-    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, scene, st->cam, kl, nl, st->eps, err);
+    lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
+    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, nl, err);
+    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, nl, st->eps, err);
     if (r == LU_OK) r = lu_afm_map_views(&st->map, scene, &st->mr, kl, nl, err);
     if (r != LU_OK) return r;
 

@@ -38,6 +38,7 @@
 #include "methods/bssrdf/bssrdf_profile.h"
 #include "methods/bssrdf/bssrdf_sampling.h"
 #include "methods/common/lightview.h"
+#include "methods/frame.h"
 #include "methods/methods.h"
 
 /* ---- kernel context: flat arrays on the CPU --------------------------------------- */
@@ -1021,7 +1022,8 @@ static double cpu_seconds(void) {
            1e-6 * ((double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_usec);
 }
 
-static lu_result bssrdf_render(void *state, const lu_scene *scene, lu_image *out, lu_error *err) {
+static lu_result bssrdf_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
+    const lu_scene *scene = frame->scene;
     bssrdf_state *st = state;
     if (scene->object_count != st->object_count)
         return lu_fail(err, LU_ERR_INVALID_ARG, "bssrdf: the scene's objects changed since prepare");

@@ -10,6 +10,7 @@ struct lu_gpu_scene {
     lu_gpu_context *ctx;
     int medium_count;
     int grid_dims[LU_SCENE_MAX_MEDIA][3];    /* 0 for constant media */
+    uint64_t grid_generation[LU_SCENE_MAX_MEDIA];   /* lu_grid.generation of the texture's values */
     lu_gpu_texture *grid[LU_SCENE_MAX_MEDIA];
     lu_gpu_buffer *header, *media, *lights;
     size_t lights_bytes;
@@ -142,6 +143,7 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
         gs->grid_dims[m][1] = med->grid.ny;
         gs->grid_dims[m][2] = med->grid.nz;
         r = lu_gpu_texture3d_create(ctx, med->grid.nx, med->grid.ny, med->grid.nz, med->grid.data, &gs->grid[m], err);
+        gs->grid_generation[m] = med->grid.generation;
     }
     if (r == LU_OK) r = upload_records(gs, scene, err);
     if (r != LU_OK) {
@@ -164,7 +166,16 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, lu_error 
                       med->grid.nz != gs->grid_dims[m][2])))
             return lu_fail(err, LU_ERR_INVALID_ARG, "gpu scene: medium %d's grid changed since the upload", m);
     }
-    return upload_records(gs, scene, err);
+    /* Density edits (lu_grid_set_values, lu_grid_apply) give the grid a new
+     * generation: its values go up again, the texture object stays. */
+    lu_result r = LU_OK;
+    for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
+        const lu_grid *g = &scene->media[m].grid;
+        if (!gs->grid[m] || g->generation == gs->grid_generation[m]) continue;
+        r = lu_gpu_texture3d_upload(gs->grid[m], g->data, err);
+        if (r == LU_OK) gs->grid_generation[m] = g->generation;
+    }
+    return r == LU_OK ? upload_records(gs, scene, err) : r;
 }
 
 lu_result lu_gpu_scene_bind(lu_gpu_scene *gs, lu_error *err) {

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "methods/common/lightview.h"
+#include "methods/frame.h"
 #include "methods/methods.h"
 #include "methods/common/opaque_accel.h"
 
@@ -38,9 +39,7 @@ void lu_media_rays_free(lu_media_rays *mr) {
     free(mr->views_packed);
     free(mr->view_table);
     free(mr->shadow);
-    free(mr->maps_lights);
     free(mr->bmap);
-    free(mr->bmap_lights);
     memset(mr, 0, sizeof *mr);
 }
 
@@ -113,7 +112,8 @@ static void camera_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     }
 }
 
-lu_result lu_media_rays_camera(lu_media_rays *mr, const lu_scene *scene, lu_k_camera cam, lu_error *err) {
+lu_result lu_media_rays_camera(lu_media_rays *mr, const lu_frame *f, lu_k_camera cam, lu_error *err) {
+    const lu_scene *scene = f->scene;
     const lu_camera *c = &scene->camera;
     size_t pixels = (size_t)c->width * c->height;
     size_t nm = mr->medium_count ? (size_t)mr->medium_count : 1u;
@@ -129,12 +129,13 @@ lu_result lu_media_rays_camera(lu_media_rays *mr, const lu_scene *scene, lu_k_ca
         mr->hits_valid = false;
         if (!ok) return lu_fail(err, LU_ERR_NOMEM, "out of memory for %zu pixels of ray inputs", pixels);
     }
-    if (mr->hits_valid && memcmp(&mr->hits_cam, c, sizeof *c) == 0) return LU_OK;
+    if (!lu_frame_stale(f, mr->hits_valid, LU_CHANGE_CAMERA | LU_CHANGE_GEOMETRY)) return LU_OK;
+    mr->hits_valid = false;
     camera_job j = {mr, scene, cam};
     lu_parallel_for(c->height, 4, camera_rows, &j, NULL);
-    mr->hits_cam = *c;
     mr->hits_valid = true;
     mr->hits_version++;
+    lu_frame_rebuilt(f, "media_rays.camera");
     return LU_OK;
 }
 
@@ -145,6 +146,7 @@ typedef struct vis_job {
     const lu_k_light *kl;
     int nl;
     float eps;
+    uint64_t lights;    /* kernel lights to recompute (bit 63: 63 and up) */
 } vis_job;
 
 static void vis_rows(void *ctx, int64_t begin, int64_t end, int thread) {
@@ -156,12 +158,14 @@ static void vis_rows(void *ctx, int64_t begin, int64_t end, int thread) {
             size_t px = (size_t)y * c->width + x;
             const float *h = j->mr->hits + px * LU_MR_HIT_FLOATS;
             float *v = j->mr->surface_vis + px * (size_t)j->nl;
-            for (int l = 0; l < j->nl; l++) v[l] = 1.0f;
+            for (int l = 0; l < j->nl; l++)
+                if ((j->lights >> (l < 63 ? l : 63)) & 1u) v[l] = 1.0f;
             if (h[3] < 0.0f || !j->mr->opaque) continue;
             lu_vec3 d = lu_k_camera_dir(j->cam, (float)x + 0.5f, (float)y + 0.5f), ng;
             memcpy(&ng, h + 4, 12);
             lu_vec3 p = lu_v3_madd(lu_v3_madd(c->position, d, h[3]), ng, j->eps);
             for (int l = 0; l < j->nl; l++) {
+                if (!((j->lights >> (l < 63 ? l : 63)) & 1u)) continue;
                 lu_k_light_sample ls = lu_k_light_arrive(j->kl[l], p);
                 v[l] = lu_accel_occluded(j->mr->opaque, p, ls.wl, 0.0f, ls.dist) ? 0.0f : 1.0f;
             }
@@ -169,8 +173,9 @@ static void vis_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     }
 }
 
-lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_scene *scene, lu_k_camera cam, const lu_k_light *kl,
+lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_frame *f, lu_k_camera cam, const lu_k_light *kl,
                                     int nl, float eps, lu_error *err) {
+    const lu_scene *scene = f->scene;
     const lu_camera *c = &scene->camera;
     size_t n = (size_t)c->width * c->height * (size_t)(nl ? nl : 1);
     if (n > mr->surface_vis_cap) {
@@ -180,27 +185,30 @@ lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_scene *scene, lu
         mr->vis_valid = false;
         if (!mr->surface_vis) return lu_fail(err, LU_ERR_NOMEM, "out of memory for surface visibility");
     }
-    if (mr->vis_valid && mr->vis_hits_version == mr->hits_version && mr->vis_maps_version == mr->maps_version)
-        return LU_OK;
-    vis_job j = {mr, scene, cam, kl, nl, eps};
+    /* A moved light leaves the other lights' columns as they are. */
+    uint64_t lights = ~0ull;
+    if (mr->vis_valid && nl == mr->vis_nl && !(f->changed & (LU_CHANGE_CAMERA | LU_CHANGE_GEOMETRY)))
+        lights = lu_frame_kernel_lights_changed(f);
+    if (!lights) return LU_OK;
+    mr->vis_valid = false;
+    vis_job j = {mr, scene, cam, kl, nl, eps, lights};
     lu_parallel_for(c->height, 4, vis_rows, &j, NULL);
     mr->vis_valid = true;
-    mr->vis_hits_version = mr->hits_version;
-    mr->vis_maps_version = mr->maps_version;
+    mr->vis_nl = nl;
+    for (int l = 0; l < nl; l++)
+        if ((lights >> (l < 63 ? l : 63)) & 1u) lu_frame_rebuilt(f, "media_rays.surface_vis");
     return LU_OK;
 }
 
 /* ---- shadow maps of the opaque objects, per light view ---- */
 
-lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_scene *scene, const lu_k_light *kl, int nl, lu_error *err) {
-    if (mr->maps_valid && nl == mr->maps_nl && memcmp(mr->maps_lights, kl, (size_t)nl * sizeof *kl) == 0) return LU_OK;
+lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_frame *f, const lu_k_light *kl, int nl, lu_error *err) {
+    const lu_scene *scene = f->scene;
+    if (!lu_frame_stale(f, mr->maps_valid, LU_CHANGE_LIGHTS | LU_CHANGE_GEOMETRY)) return LU_OK;
     size_t nls = nl ? (size_t)nl : 1u;
     free(mr->shadow);
-    free(mr->maps_lights);
     mr->shadow = NULL;
     mr->maps_valid = false;
-    mr->maps_lights = malloc(nls * sizeof *mr->maps_lights);
-    if (!mr->maps_lights) return lu_fail(err, LU_ERR_NOMEM, "out of memory for light views");
     lu_result r = lu_lightviews_for_scene(scene, lu_scene_bounds(scene), 1.0f, &mr->views, &mr->views_packed,
                                           &mr->view_table, &mr->view_count, err);
     if (r != LU_OK) return r;
@@ -221,10 +229,9 @@ lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_scene *scene, const lu_
         mr->shadow = calloc(1, sizeof(float));
         if (!mr->shadow) return lu_fail(err, LU_ERR_NOMEM, "out of memory");
     }
-    if (nl) memcpy(mr->maps_lights, kl, (size_t)nl * sizeof *kl);
-    mr->maps_nl = nl;
     mr->maps_valid = true;
     mr->maps_version++;
+    lu_frame_rebuilt(f, "media_rays.maps");
     return LU_OK;
 }
 
@@ -271,20 +278,18 @@ static void bmap_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     }
 }
 
-lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_scene *scene, const lu_k_light *kl, int nl,
+lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_frame *f, const lu_k_light *kl, int nl,
                                       lu_error *err) {
-    if (mr->bmap_valid && nl == mr->bmap_nl && memcmp(mr->bmap_lights, kl, (size_t)nl * sizeof *kl) == 0) return LU_OK;
+    const lu_scene *scene = f->scene;
+    if (!lu_frame_stale(f, mr->bmap_valid, LU_CHANGE_LIGHTS | LU_CHANGE_GEOMETRY)) return LU_OK;
     bool bounded = false;
     for (int m = 0; m < mr->medium_count; m++) bounded = bounded || mr->boundary[m];
     free(mr->bmap);
-    free(mr->bmap_lights);
     mr->bmap = NULL;
     mr->bmap_floats = 0;
     mr->bmap_view_count = 0;
     mr->bmap_valid = false;
     size_t nls = nl ? (size_t)nl : 1u;
-    mr->bmap_lights = malloc(nls * sizeof *kl);
-    if (!mr->bmap_lights) return lu_fail(err, LU_ERR_NOMEM, "out of memory for boundary maps");
     lu_k_lightview *views = NULL;
     float *packed = NULL;
     int *table = NULL, count = 0;
@@ -309,9 +314,8 @@ lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_scene *scene, 
     free(packed);
     free(table);
     if (r != LU_OK) return r;
-    if (nl) memcpy(mr->bmap_lights, kl, (size_t)nl * sizeof *kl);
-    mr->bmap_nl = nl;
     mr->bmap_valid = true;
     mr->bmap_version++;
+    lu_frame_rebuilt(f, "media_rays.boundary_maps");
     return LU_OK;
 }

@@ -33,36 +33,35 @@ typedef struct lu_media_rays {
     lu_accel **boundary;         /* per medium, NULL when unbounded */
     int medium_count;
     bool want_normals;           /* also fill `normals` for camera rays */
-    /* camera rays, rebuilt when the camera changes */
+    /* Each product below is rebuilt only when the frame (methods/frame.h)
+     * changed what it depends on; call the builders every frame. */
+    /* camera rays: camera, geometry */
     float *hits, *spans, *normals;
     size_t pixels_cap;
-    lu_camera hits_cam;
     bool hits_valid;
-    /* opaque visibility of each light at each pixel's surface hit (optional) */
+    unsigned hits_version;
+    /* opaque visibility of each light at each pixel's surface hit (optional):
+     * camera, geometry, and per light its own changes */
     float *surface_vis;          /* pixels * nl */
     size_t surface_vis_cap;
-    unsigned hits_version, vis_hits_version, vis_maps_version;
+    int vis_nl;
     bool vis_valid;
-    /* light views and shadow maps, rebuilt when the lights change */
+    /* light views and shadow maps: lights, geometry */
     int shadow_res;
     lu_k_lightview *views;
     float *views_packed;         /* view_count * LU_RM_VIEW_FLOATS */
     int *view_table;             /* per light: first view, view count */
     float *shadow;               /* view_count * res * res depths */
     int view_count;
-    lu_k_light *maps_lights;     /* lights the maps were built for */
-    int maps_nl;
     bool maps_valid;
     unsigned maps_version;       /* changes whenever views or shadow maps are rebuilt */
-    /* boundary maps (lu_media_rays_boundary_maps), rebuilt when the lights change:
+    /* boundary maps (lu_media_rays_boundary_maps): lights, geometry;
      * one float buffer, LU_MR_BMAP_HEADER: [view table as floats (2 per light)]
      * [views, LU_RM_VIEW_FLOATS each][maps: view * medium_count + m, res x res
      * texels of LU_MR_BMAP_FLOATS]; offsets in bmap_views_at, bmap_maps_at */
     float *bmap;
     size_t bmap_floats;
     int bmap_views_at, bmap_maps_at, bmap_view_count;
-    lu_k_light *bmap_lights;
-    int bmap_nl;
     bool bmap_valid;
     unsigned bmap_version;
 } lu_media_rays;
@@ -78,25 +77,25 @@ lu_result lu_media_rays_init(lu_media_rays *mr, const lu_scene *scene, int shado
 void lu_media_rays_free(lu_media_rays *mr);
 
 /* Camera-ray hits and spans (and normals when wanted) for the scene's camera. */
-lu_result lu_media_rays_camera(lu_media_rays *mr, const lu_scene *scene, lu_k_camera cam, lu_error *err);
+lu_result lu_media_rays_camera(lu_media_rays *mr, const lu_frame *f, lu_k_camera cam, lu_error *err);
 
 /* Light views and shadow maps for the kernel lights kl[0..nl) (scene order,
  * environment lights left out). */
-lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_scene *scene, const lu_k_light *kl, int nl, lu_error *err);
+lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_frame *f, const lu_k_light *kl, int nl, lu_error *err);
 
 /* Boundary maps of the bounded media for the kernel lights kl[0..nl) (see
  * the struct): shadow rays can then clip a bounded medium to its boundary
  * (exactly for a convex one) and carry the Fresnel transmittance of each
  * crossing, as the reference does. No bounded medium: bmap_view_count 0. */
-lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_scene *scene, const lu_k_light *kl, int nl,
+lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_frame *f, const lu_k_light *kl, int nl,
                                       lu_error *err);
 
 /* Exact opaque visibility (Embree occlusion) of the kernel lights kl[0..nl)
  * at every camera ray's surface hit, offset by eps along the geometric
  * normal: surface_vis[pixel * nl + l] in {0, 1} (1 where the ray hits no
  * surface). Call after lu_media_rays_camera and lu_media_rays_maps (same
- * lights); kept while neither changes. */
-lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_scene *scene, lu_k_camera cam, const lu_k_light *kl,
+ * lights); kept while neither changes, and per light while that light does not. */
+lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_frame *f, lu_k_camera cam, const lu_k_light *kl,
                                     int nl, float eps, lu_error *err);
 
 /* The first span of each medium along o + t d, t in [0, t_end]: sp[2m],

@@ -16,6 +16,7 @@
 
 #include "methods/ddod/ddod.h"
 #include "methods/common/gpu_scene.h"
+#include "methods/frame.h"
 #include "methods/methods.h"
 #include "methods/common/media_ray.h"
 #include "methods/common/tile_bins.h"
@@ -499,7 +500,8 @@ static void gather_tiles(void *ctx, int64_t begin, int64_t end, int thread) {
     }
 }
 
-static lu_result ddod_render(void *state, const lu_scene *scene, lu_image *out, lu_error *err) {
+static lu_result ddod_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
+    const lu_scene *scene = frame->scene;
     ddod_state *st = state;
     if (scene->medium_count != st->medium_count)
         return lu_fail(err, LU_ERR_INVALID_ARG, "ddod: the scene's media changed since prepare");

@@ -24,6 +24,7 @@
 #include "methods/gradient/gradient.h"
 #include "methods/gradient/gradient_fit.h"
 #include "methods/common/media_ray.h"
+#include "methods/frame.h"
 #include "methods/methods.h"
 
 /* ---- kernel context: the hooks of lu_gradient.h / lu_view_march.h on the CPU ---- */
@@ -596,7 +597,8 @@ static double uncovered_fraction(gr_state *st) {
     return dense ? (double)bare / (double)dense : 0.0;
 }
 
-static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu_error *err) {
+static lu_result gr_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
+    const lu_scene *scene = frame->scene;
     gr_state *st = state;
     if (scene->medium_count != st->nm)
         return lu_fail(err, LU_ERR_INVALID_ARG, "%s: the scene's media changed since prepare", st->who);
@@ -609,10 +611,10 @@ static lu_result gr_render(void *state, const lu_scene *scene, lu_image *out, lu
     if (!kl) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", st->who);
     st->kl = kl;
     st->nl = lu_scene_kernel_lights(scene, kl);
-    lu_result r = lu_media_rays_camera(&st->mr, scene, st->cam, err);
-    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, scene, kl, st->nl, err);
-    if (r == LU_OK) r = lu_media_rays_boundary_maps(&st->mr, scene, kl, st->nl, err);
-    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, scene, st->cam, kl, st->nl, st->eps, err);
+    lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
+    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, st->nl, err);
+    if (r == LU_OK) r = lu_media_rays_boundary_maps(&st->mr, frame, kl, st->nl, err);
+    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, st->nl, st->eps, err);
     if (r != LU_OK) return r;
     lu_gradient_stats keep = st->stats;
     memset(&st->stats, 0, sizeof st->stats);

@@ -41,6 +41,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "methods/frame.h"
 #include "methods/methods.h"
 #include "methods/pathtrace/pathtrace_internal.h"
 
@@ -1300,8 +1301,9 @@ static uint64_t inside_mask_at(const pt_state *st, lu_vec3 p) {
     return mask;
 }
 
-static lu_result pt_render_impl(void *state, const lu_scene *scene, lu_image *out, const lu_progressive *prog,
+static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *out, const lu_progressive *prog,
                                 lu_error *err) {
+    const lu_scene *scene = frame->scene;
     pt_state *st = state;
     if (scene->medium_count != st->medium_count)
         return lu_fail(err, LU_ERR_INVALID_ARG, "pathtrace: the scene's media changed since prepare");
@@ -1366,8 +1368,8 @@ static lu_result pt_render_impl(void *state, const lu_scene *scene, lu_image *ou
     return LU_OK;
 }
 
-static lu_result pt_render(void *state, const lu_scene *scene, lu_image *out, lu_error *err) {
-    return pt_render_impl(state, scene, out, NULL, err);
+static lu_result pt_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
+    return pt_render_impl(state, frame, out, NULL, err);
 }
 
 const lu_method lu_method_pathtrace = {

@@ -20,6 +20,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "methods/frame.h"
 #include "methods/methods.h"
 #include "methods/common/opaque_accel.h"
 
@@ -615,7 +616,8 @@ static lu_result ref_prepare(const lu_scene *scene, const double *params, lu_bac
     return LU_OK;
 }
 
-static lu_result ref_render(void *state, const lu_scene *scene, lu_image *out, lu_error *err) {
+static lu_result ref_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
+    const lu_scene *scene = frame->scene;
     ref_state *st = state;
     if (scene->medium_count != st->medium_count)
         return lu_fail(err, LU_ERR_INVALID_ARG, "reference: the scene's media changed since prepare");
