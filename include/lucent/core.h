@@ -126,8 +126,9 @@ lu_result lu_thread_count_parse(const char *text, const char *where, int *out, l
  * using up to lu_thread_count() threads: the caller and pool workers.
  * thread_index is in [0, lu_thread_count()) as read at the start of the call,
  * and no two threads running chunks of the same call share one, so it can
- * index per-thread scratch sized by lu_thread_count(). Index 0 is always the
- * calling thread. Returns once every chunk has finished.
+ * index per-thread scratch sized by lu_thread_count() (scratch sized before
+ * a later lu_set_thread_count raised the count is too small). Index 0 is
+ * always the calling thread. Returns once every chunk has finished.
  *
  * Nested and concurrent calls: every call is queued as a job of its own,
  * whether fn calls lu_parallel_for again or several application threads call

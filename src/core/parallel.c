@@ -44,13 +44,23 @@ lu_result lu_set_thread_count(int n, lu_error *err) {
     return LU_OK;
 }
 
+static pthread_once_t g_cpus_once = PTHREAD_ONCE_INIT;
+static int g_cpus;
+
+/* Once: glibc answers _SC_NPROCESSORS_ONLN by reading a /sys file, which
+ * would cost more than a small lu_parallel_for itself. */
+static void count_cpus(void) {
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    g_cpus = n < 1 ? 1 : (n > LU_MAX_THREADS ? LU_MAX_THREADS : (int)n);
+}
+
 int lu_thread_count(void) {
     int n = atomic_load(&g_thread_count);
     if (n > 0) return n;
     const char *env = getenv("LUCENT_THREADS");
     if (env && *env && lu_thread_count_parse(env, "LUCENT_THREADS", &n, NULL) == LU_OK) return n;
-    long cpus = sysconf(_SC_NPROCESSORS_ONLN);
-    return cpus < 1 ? 1 : (cpus > LU_MAX_THREADS ? LU_MAX_THREADS : (int)cpus);
+    pthread_once(&g_cpus_once, count_cpus);
+    return g_cpus;
 }
 
 /* ---- the pool ----------------------------------------------------------- */
