@@ -134,7 +134,10 @@ lu_result lu_thread_count_parse(const char *text, const char *where, int *out, l
  * whether fn calls lu_parallel_for again or several application threads call
  * it at once; workers join the oldest job with chunks left, and each caller
  * runs its own job's chunks too, so every call completes (a call that finds
- * all workers busy runs on its caller alone). Thread indices are unique per
+ * every worker busy starts on its caller alone, and workers join it as they
+ * come free). Callers at once share the workers: together they get at most
+ * the pool's size (the largest count asked for, minus one), each at most its
+ * own count minus one, plus themselves. Thread indices are unique per
  * call, not across calls: scratch indexed by thread_index must belong to one
  * call at a time.
  *
