@@ -19,7 +19,8 @@ static const char k_usage[] =
     "  profile --preset NAME                                diffusion profile of a translucent material\n"
     "\n"
     "Every command takes --help. Exit codes: 0 success, 1 failure (bad input, failed\n"
-    "render; one line on stderr says why), 2 usage error, 3 a --max-* threshold exceeded.\n";
+    "render; one line on stderr says why), 2 usage error (a bad argument, or LUCENT_THREADS\n"
+    "not an integer in [1, 256]), 3 a --max-* threshold exceeded.\n";
 
 int lu_cli_error(const char *cmd, const lu_error *err) {
     fprintf(stderr, "lucent %s: error: %s\n", cmd, err->message);
@@ -99,6 +100,18 @@ int main(int argc, char **argv) {
     if (strcmp(argv[1], "--version") == 0) {
         printf("lucent %s\n", LU_VERSION_STRING);
         return LU_EXIT_OK;
+    }
+    /* The library would ignore a bad value; on the command line it is a
+     * mistake worth stopping for. */
+    const char *threads = getenv("LUCENT_THREADS");
+    if (threads && *threads) {
+        lu_error err = {0};
+        int n;
+        if (lu_thread_count_parse(threads, "LUCENT_THREADS", &n, &err) != LU_OK ||
+            lu_set_thread_count(n, &err) != LU_OK) {
+            fprintf(stderr, "lucent: error: %s\n", err.message);
+            return LU_EXIT_USAGE;
+        }
     }
     static const struct {
         const char *name;

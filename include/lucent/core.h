@@ -96,17 +96,53 @@ lu_result lu_kv_check_known(const lu_kvlist *list, const char *const *known, con
                             lu_error *err);
 
 /* ---- threads -----------------------------------------------------------
- * One worker pool for the library. Thread count: LUCENT_THREADS env var, else
- * the number of online processors. Work is handed out in chunks from an atomic
- * counter, so results never depend on scheduling (each index is computed by
- * exactly one call, with no shared accumulation). */
+ * One persistent worker pool per process, started by the first
+ * lu_parallel_for that can use a helper and grown (never shrunk) to the
+ * largest thread count asked for since. Idle workers sleep; they do not spin.
+ *
+ * Thread count: the value given to lu_set_thread_count, else LUCENT_THREADS
+ * (a decimal integer in [1, LU_MAX_THREADS]; any other value is ignored),
+ * else the number of online processors capped at LU_MAX_THREADS. The
+ * LUCENT_THREADS fallback is transitional: hosts should call
+ * lu_set_thread_count (the CLI does, after validating the variable).
+ *
+ * Work is handed out in chunks from an atomic counter, so results never
+ * depend on scheduling (each index is computed by exactly one call, with no
+ * shared accumulation). */
+
+#define LU_MAX_THREADS 256
 
 typedef void (*lu_range_fn)(void *ctx, int64_t begin, int64_t end, int thread_index);
 
 int lu_thread_count(void);
-/* Calls fn over [0, n) split into chunks of `grain` (0 picks a default).
+/* n in [1, LU_MAX_THREADS] fixes the count for later lu_parallel_for calls
+ * (calls already running keep theirs); 0 returns to the default above.
+ * Anything else is LU_ERR_RANGE and changes nothing. */
+lu_result lu_set_thread_count(int n, lu_error *err);
+/* Parses a thread count as LUCENT_THREADS spells it: decimal digits only,
+ * value in [1, LU_MAX_THREADS]. `where` prefixes the error. */
+lu_result lu_thread_count_parse(const char *text, const char *where, int *out, lu_error *err);
+/* Calls fn over [0, n) split into chunks of `grain` (0 picks a default),
+ * using up to lu_thread_count() threads: the caller and pool workers.
+ * thread_index is in [0, lu_thread_count()) as read at the start of the call,
+ * and no two threads running chunks of the same call share one, so it can
+ * index per-thread scratch sized by lu_thread_count() (scratch sized before
+ * a later lu_set_thread_count raised the count is too small). Index 0 is
+ * always the calling thread. Returns once every chunk has finished.
+ *
+ * Nested and concurrent calls: every call is queued as a job of its own,
+ * whether fn calls lu_parallel_for again or several application threads call
+ * it at once; workers join the oldest job with chunks left, and each caller
+ * runs its own job's chunks too, so every call completes (a call that finds
+ * every worker busy starts on its caller alone, and workers join it as they
+ * come free). Callers at once share the workers: together they get at most
+ * the pool's size (the largest count asked for, minus one), each at most its
+ * own count minus one, plus themselves. Thread indices are unique per
+ * call, not across calls: scratch indexed by thread_index must belong to one
+ * call at a time.
+ *
  * progress_label, when non-NULL, drives a progress bar on stderr for runs
- * over a second (see lu_progress). */
+ * over a second (see lu_progress), updated by the calling thread. */
 void lu_parallel_for(int64_t n, int64_t grain, lu_range_fn fn, void *ctx, const char *progress_label);
 
 /* ---- progress ------------------------------------------------------------
