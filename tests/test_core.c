@@ -2,6 +2,8 @@
 #include <lucent/lucent.h>
 
 #include <stdatomic.h>
+#include <stdlib.h>
+#include <sys/stat.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -138,7 +140,57 @@ static void test_parallel_for(void) {
     free(out);
 }
 
+/* The cache folder's precedence: the host's setting, LUCENT_CACHE_DIR, an
+ * absolute XDG_CACHE_HOME, HOME; none of them is an error. */
+static void test_cache_dir(void) {
+    char dir[1024], path[1100];
+    lu_error err = {0};
+    const char *keep_home = getenv("HOME");
+    char home[1024];
+    snprintf(home, sizeof home, "%s", keep_home ? keep_home : "");
+    unsetenv("LUCENT_CACHE_DIR");
+    unsetenv("XDG_CACHE_HOME");
+    setenv("HOME", "/h", 1);
+    CHECK_OK(lu_cache_dir(dir, sizeof dir, &err), &err);
+    CHECK_MSG(strcmp(dir, "/h/.cache/lucent") == 0, "%s", dir);
+    setenv("XDG_CACHE_HOME", "relative/ignored", 1);
+    CHECK_OK(lu_cache_dir(dir, sizeof dir, &err), &err);
+    CHECK_MSG(strcmp(dir, "/h/.cache/lucent") == 0, "%s", dir);
+    setenv("XDG_CACHE_HOME", "/x", 1);
+    CHECK_OK(lu_cache_dir(dir, sizeof dir, &err), &err);
+    CHECK_MSG(strcmp(dir, "/x/lucent") == 0, "%s", dir);
+    setenv("LUCENT_CACHE_DIR", "/e", 1);
+    CHECK_OK(lu_cache_path("f.bin", false, path, sizeof path, &err), &err);
+    CHECK_MSG(strcmp(path, "/e/f.bin") == 0, "%s", path);
+    CHECK_OK(lu_set_cache_dir("/s", &err), &err);
+    CHECK_OK(lu_cache_dir(dir, sizeof dir, &err), &err);
+    CHECK_MSG(strcmp(dir, "/s") == 0, "%s", dir);
+    CHECK(lu_set_cache_dir("", &err) == LU_ERR_INVALID_ARG);
+    CHECK_OK(lu_set_cache_dir(NULL, &err), &err);
+    unsetenv("LUCENT_CACHE_DIR");
+    unsetenv("XDG_CACHE_HOME");
+    unsetenv("HOME");
+    CHECK(lu_cache_dir(dir, sizeof dir, &err) == LU_ERR_IO);
+    CHECK(strstr(err.message, "LUCENT_CACHE_DIR") != NULL);
+    /* create_dir makes the nested folder */
+    char tmpl[] = "/tmp/lu_cache_XXXXXX";
+    CHECK(mkdtemp(tmpl) != NULL);
+    char nested[200];
+    snprintf(nested, sizeof nested, "%s/a/b", tmpl);
+    setenv("LUCENT_CACHE_DIR", nested, 1);
+    CHECK_OK(lu_cache_path("x", true, path, sizeof path, &err), &err);
+    struct stat st;
+    CHECK(stat(nested, &st) == 0 && S_ISDIR(st.st_mode));
+    rmdir(nested);
+    snprintf(nested, sizeof nested, "%s/a", tmpl);
+    rmdir(nested);
+    rmdir(tmpl);
+    unsetenv("LUCENT_CACHE_DIR");
+    if (home[0]) setenv("HOME", home, 1);
+}
+
 int main(void) {
+    RUN_TEST(test_cache_dir);
     RUN_TEST(test_kv_parse);
     RUN_TEST(test_affine);
     RUN_TEST(test_aabb_ray);

@@ -196,6 +196,15 @@ bool lu_path_has_suffix(const char *path, const char *suffix); /* case-insensiti
 /* Joins dir-of(base_file) with rel (unless rel is absolute) into out. */
 void lu_path_resolve(const char *base_file, const char *rel, char *out, size_t out_size);
 
+/* ---- the cache folder ----------------------------------------------------
+ * Every on-disk cache lives in one folder: the one set here (NULL: back to
+ * the default), else $LUCENT_CACHE_DIR, else $XDG_CACHE_HOME/lucent, else
+ * $HOME/.cache/lucent. */
+lu_result lu_set_cache_dir(const char *dir, lu_error *err);
+lu_result lu_cache_dir(char *out, size_t cap, lu_error *err);
+/* <cache folder>/name, creating the folder first when create_dir. */
+lu_result lu_cache_path(const char *name, bool create_dir, char *out, size_t cap, lu_error *err);
+
 #ifdef __cplusplus
 }
 #endif

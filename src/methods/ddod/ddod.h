@@ -24,7 +24,7 @@
  *      projected onto bands^2 real SH by the n-point quadrature;
  *   5. (extension) amplitudes A_i fitted so that sum_j A_j gamma_j(b_i) ~ 1
  *      at every sample: `fit` damped Jacobi updates A_i <- A_i / S_i^0.7.
- * Results are cached on disk (see lu_ddod_cache_dir). */
+ * Results are cached on disk, in the cache folder (lu_cache_dir). */
 #ifndef LU_METHODS_DDOD_H
 #define LU_METHODS_DDOD_H
 
@@ -72,8 +72,6 @@ lu_result lu_ddod_compute(const lu_scene *scene, const lu_ddod_params *p, lu_ddo
 void lu_ddod_set_free(lu_ddod_set *s);
 
 /* ---- cache ---- */
-/* $LUCENT_CACHE_DIR, else "out/cache". */
-const char *lu_ddod_cache_dir(void);
 /* 64-bit FNV-1a over everything the precomputation reads. */
 uint64_t lu_ddod_key(const lu_scene *scene, const lu_ddod_params *p);
 lu_result lu_ddod_cache_save(const char *path, uint64_t key, const lu_ddod_set *s, lu_error *err);

@@ -11,11 +11,6 @@
 
 #define DDOD_CACHE_VERSION 5
 
-const char *lu_ddod_cache_dir(void) {
-    const char *d = getenv("LUCENT_CACHE_DIR");
-    return d && *d ? d : "out/cache";
-}
-
 typedef struct fnv {
     uint64_t h;
 } fnv;
@@ -174,32 +169,19 @@ lu_result lu_ddod_cache_load(const char *path, uint64_t key, lu_ddod_set *s, lu_
     return LU_OK;
 }
 
-static lu_result mkdirs(const char *dir, lu_error *err) {
-    char tmp[1024];
-    snprintf(tmp, sizeof tmp, "%s", dir);
-    for (char *p = tmp + 1; *p; p++) {
-        if (*p != '/') continue;
-        *p = '\0';
-        if (mkdir(tmp, 0777) != 0 && errno != EEXIST)
-            return lu_fail(err, LU_ERR_IO, "%s: cannot create the cache folder: %s", tmp, strerror(errno));
-        *p = '/';
-    }
-    if (mkdir(tmp, 0777) != 0 && errno != EEXIST)
-        return lu_fail(err, LU_ERR_IO, "%s: cannot create the cache folder: %s", tmp, strerror(errno));
-    return LU_OK;
-}
-
 lu_result lu_ddod_prepare_set(const lu_scene *scene, const lu_ddod_params *p, bool use_cache, lu_ddod_set *out,
                               lu_error *err) {
     if (!use_cache) return lu_ddod_compute(scene, p, out, err);
     uint64_t key = lu_ddod_key(scene, p);
-    char path[1100];
-    snprintf(path, sizeof path, "%s/ddod-%016llx.bin", lu_ddod_cache_dir(), (unsigned long long)key);
+    char name[64], path[1100];
+    snprintf(name, sizeof name, "ddod-%016llx.bin", (unsigned long long)key);
+    lu_result r = lu_cache_path(name, false, path, sizeof path, err);
+    if (r != LU_OK) return r;
     struct stat stt;
     if (stat(path, &stt) == 0) return lu_ddod_cache_load(path, key, out, err);
-    lu_result r = lu_ddod_compute(scene, p, out, err);
+    r = lu_ddod_compute(scene, p, out, err);
     if (r != LU_OK) return r;
-    r = mkdirs(lu_ddod_cache_dir(), err);
+    r = lu_cache_path(name, true, path, sizeof path, err);
     if (r == LU_OK) r = lu_ddod_cache_save(path, key, out, err);
     if (r != LU_OK) lu_ddod_set_free(out);
     return r;
