@@ -23,6 +23,12 @@ typedef struct lu_grid {
     lu_affine index_to_world;
     float min_value, max_value;
     char name[64];
+    /* Change stamps (see "edits" below): a process-wide increasing number
+     * given at allocation and at every edit, so no two states of any grids
+     * share one; prev_generation is the stamp before the latest edit (0 after
+     * allocation) and [edit_lo, edit_hi) the index box that edit changed. */
+    uint64_t generation, prev_generation;
+    int edit_lo[3], edit_hi[3];
 } lu_grid;
 
 lu_result lu_grid_alloc(lu_grid *g, int nx, int ny, int nz, lu_error *err); /* zero-filled, identity map */
@@ -37,6 +43,32 @@ static inline float lu_grid_at(const lu_grid *g, int x, int y, int z) {
 float lu_grid_sample(const lu_grid *g, lu_vec3 p_index);
 /* Support of the field in index space: [-1, n] per axis. */
 lu_aabb lu_grid_index_support(const lu_grid *g);
+
+/* ---- edits --------------------------------------------------------------
+ * Density changes after loading go through these calls, which keep
+ * min_value / max_value right and give the grid a new `generation`. A
+ * renderer keeps the generation its cached products were built from and
+ * compares: equal means unchanged; equal to prev_generation means exactly
+ * the latest edit happened, so only [edit_lo, edit_hi) needs refreshing (a
+ * texture sub-upload, say); anything else means the whole grid.
+ * Both calls speak in voxel indices and values, never in storage, so they
+ * keep their meaning for sparse grids. Values must be finite and >= 0; a
+ * rejected edit (LU_ERR_NONFINITE / LU_ERR_RANGE naming the voxel,
+ * LU_ERR_INVALID_ARG for a bad box or count) leaves the grid unchanged.
+ * Every loaded grid (NanoVDB, raw, voxelised, procedural) holds plain values:
+ * an edit changes those values; it never re-runs a generator or touches a
+ * file. Writing g->data directly skips the stamp, and renderers will then
+ * not see the change. */
+
+/* Replaces all values: `values` holds count = nx*ny*nz floats, x fastest. */
+lu_result lu_grid_set_values(lu_grid *g, const float *values, size_t count, lu_error *err);
+/* Called once per voxel of the box, in z, y, x order on the calling thread,
+ * with the voxel's current value; returns its new value. */
+typedef float (*lu_grid_edit_fn)(void *ctx, int x, int y, int z, float value);
+/* Rewrites the voxels of the index box [lo, hi) (0 <= lo < hi <= n per
+ * axis) through fn. */
+lu_result lu_grid_apply(lu_grid *g, const int lo[3], const int hi[3], lu_grid_edit_fn fn, void *ctx,
+                        lu_error *err);
 
 /* ---- files -------------------------------------------------------------- */
 

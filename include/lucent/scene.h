@@ -128,6 +128,13 @@ lu_result lu_scene_load(const char *path, lu_scene *scene, lu_error *err);
 lu_result lu_scene_load_string(const char *json, const char *base_path, lu_scene *scene, lu_error *err);
 void lu_scene_destroy(lu_scene *scene);
 
+/* The density grid of medium `medium`, for editing (lu_grid_set_values,
+ * lu_grid_apply in grid.h). Medium bounds and transforms never change with an
+ * edit: the grid's support is the same box. Refuses an index out of range
+ * (LU_ERR_INVALID_ARG) and a constant-density medium, translucent objects'
+ * media included (LU_ERR_UNSUPPORTED: there is no grid to edit). */
+lu_result lu_scene_medium_grid(lu_scene *scene, int medium, lu_grid **grid, lu_error *err);
+
 /* World box around all media (empty box if none). */
 lu_aabb lu_scene_media_bounds(const lu_scene *scene);
 /* World box around everything with geometry: media and objects. */

@@ -19,6 +19,19 @@ void lu_scene_destroy(lu_scene *s) {
     memset(s, 0, sizeof *s);
 }
 
+lu_result lu_scene_medium_grid(lu_scene *s, int medium, lu_grid **grid, lu_error *err) {
+    if (grid) *grid = NULL;
+    if (!s || !grid) return lu_fail(err, LU_ERR_INVALID_ARG, "lu_scene_medium_grid: no scene or no output");
+    if (medium < 0 || medium >= s->medium_count)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "%s: no medium %d (the scene has %d)", s->path, medium,
+                       s->medium_count);
+    if (s->media[medium].kind != LU_DENSITY_GRID)
+        return lu_fail(err, LU_ERR_UNSUPPORTED, "%s: medium %d has constant density: there is no grid to edit", s->path,
+                       medium);
+    *grid = &s->media[medium].grid;
+    return LU_OK;
+}
+
 lu_aabb lu_scene_media_bounds(const lu_scene *s) {
     lu_aabb b = lu_aabb_empty();
     for (int i = 0; i < s->medium_count; i++) {

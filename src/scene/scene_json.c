@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "volume/grid_internal.h"
+
 #define LU_SCENE_MAX_BYTES (16u * 1024u * 1024u)
 #define LU_SCENE_MAX_ITEMS 4096
 
@@ -569,6 +571,7 @@ static lu_result parse_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_m
     m->from_object = -1;
     m->eta = 1.0f;
     TRY(parse_density(c, o, p, m));
+    if (m->kind == LU_DENSITY_GRID && m->grid.generation == 0) lu_grid_stamp_new(&m->grid);
     TRY(get_vec3(c, o, p, "sigma_s", lu_v3s(1), 0, 1e6, true, true, &m->sigma_s));
     TRY(get_vec3(c, o, p, "sigma_a", lu_v3s(0), 0, 1e6, false, true, &m->sigma_a));
     TRY(get_float(c, o, p, "phase_g", 0.0, -0.99, 0.99, false, &m->phase_g));

@@ -3,10 +3,28 @@
 
 #include <errno.h>
 #include <float.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+
+#include "volume/grid_internal.h"
+
+/* One counter for every grid of the process: a grid destroyed and another
+ * allocated in its place never repeat a stamp a renderer may have kept. */
+static atomic_uint_fast64_t g_generation;
+
+static uint64_t next_generation(void) { return (uint64_t)atomic_fetch_add(&g_generation, 1) + 1; }
+
+void lu_grid_stamp_new(lu_grid *g) {
+    g->prev_generation = 0;
+    g->generation = next_generation();
+    for (int a = 0; a < 3; a++) g->edit_lo[a] = 0;
+    g->edit_hi[0] = g->nx;
+    g->edit_hi[1] = g->ny;
+    g->edit_hi[2] = g->nz;
+}
 
 lu_result lu_grid_alloc(lu_grid *g, int nx, int ny, int nz, lu_error *err) {
     memset(g, 0, sizeof *g);
@@ -29,6 +47,7 @@ lu_result lu_grid_alloc(lu_grid *g, int nx, int ny, int nz, lu_error *err) {
     g->ny = ny;
     g->nz = nz;
     g->data = data;
+    lu_grid_stamp_new(g);
     return LU_OK;
 }
 
@@ -52,6 +71,95 @@ void lu_grid_update_range(lu_grid *g) {
     }
     g->min_value = lo;
     g->max_value = hi;
+}
+
+/* ---- edits ---------------------------------------------------------------- */
+
+static lu_result check_value(const lu_grid *g, float v, int x, int y, int z, const char *fn, lu_error *err) {
+    if (!isfinite(v))
+        return lu_fail(err, LU_ERR_NONFINITE, "%s: grid \"%s\" voxel (%d, %d, %d): density is not a finite number", fn,
+                       g->name, x, y, z);
+    if (v < 0.0f)
+        return lu_fail(err, LU_ERR_RANGE, "%s: grid \"%s\" voxel (%d, %d, %d): density %g is negative", fn, g->name, x,
+                       y, z, (double)v);
+    return LU_OK;
+}
+
+static void stamp_edit(lu_grid *g, const int lo[3], const int hi[3]) {
+    g->prev_generation = g->generation;
+    g->generation = next_generation();
+    for (int a = 0; a < 3; a++) {
+        g->edit_lo[a] = lo[a];
+        g->edit_hi[a] = hi[a];
+    }
+}
+
+lu_result lu_grid_set_values(lu_grid *g, const float *values, size_t count, lu_error *err) {
+    if (!g || !g->data || !values) return lu_fail(err, LU_ERR_INVALID_ARG, "lu_grid_set_values: no grid or no values");
+    size_t n = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
+    if (count != n)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "lu_grid_set_values: grid \"%s\" has %d x %d x %d = %zu voxels, got %zu values",
+                       g->name, g->nx, g->ny, g->nz, n, count);
+    for (size_t i = 0; i < n; i++)
+        if (!(isfinite(values[i]) && values[i] >= 0.0f)) {
+            int x = (int)(i % (size_t)g->nx), y = (int)(i / (size_t)g->nx % (size_t)g->ny);
+            int z = (int)(i / ((size_t)g->nx * (size_t)g->ny));
+            return check_value(g, values[i], x, y, z, "lu_grid_set_values", err);
+        }
+    memmove(g->data, values, n * sizeof *values);
+    lu_grid_update_range(g);
+    const int lo[3] = {0, 0, 0}, hi[3] = {g->nx, g->ny, g->nz};
+    stamp_edit(g, lo, hi);
+    return LU_OK;
+}
+
+lu_result lu_grid_apply(lu_grid *g, const int lo[3], const int hi[3], lu_grid_edit_fn fn, void *ctx,
+                        lu_error *err) {
+    if (!g || !g->data || !lo || !hi || !fn)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "lu_grid_apply: no grid, box or function");
+    const int n[3] = {g->nx, g->ny, g->nz};
+    for (int a = 0; a < 3; a++)
+        if (!(lo[a] >= 0 && lo[a] < hi[a] && hi[a] <= n[a]))
+            return lu_fail(err, LU_ERR_INVALID_ARG,
+                           "lu_grid_apply: box [%d, %d) x [%d, %d) x [%d, %d) is empty or outside grid \"%s\" of "
+                           "%d x %d x %d voxels",
+                           lo[0], hi[0], lo[1], hi[1], lo[2], hi[2], g->name, n[0], n[1], n[2]);
+    /* New values go to a scratch box first, so a rejected value leaves the
+     * grid as it was. */
+    int bx = hi[0] - lo[0], by = hi[1] - lo[1], bz = hi[2] - lo[2];
+    float *box = malloc((size_t)bx * (size_t)by * (size_t)bz * sizeof *box);
+    if (!box) return lu_fail(err, LU_ERR_NOMEM, "lu_grid_apply: out of memory for a %d x %d x %d box", bx, by, bz);
+    float old_lo = FLT_MAX, old_hi = -FLT_MAX, new_lo = FLT_MAX, new_hi = -FLT_MAX;
+    size_t k = 0;
+    for (int z = lo[2]; z < hi[2]; z++)
+        for (int y = lo[1]; y < hi[1]; y++)
+            for (int x = lo[0]; x < hi[0]; x++, k++) {
+                float old = g->data[((size_t)z * g->ny + y) * g->nx + x];
+                float v = fn(ctx, x, y, z, old);
+                lu_result r = check_value(g, v, x, y, z, "lu_grid_apply", err);
+                if (r != LU_OK) {
+                    free(box);
+                    return r;
+                }
+                box[k] = v;
+                old_lo = fminf(old_lo, old), old_hi = fmaxf(old_hi, old);
+                new_lo = fminf(new_lo, v), new_hi = fmaxf(new_hi, v);
+            }
+    k = 0;
+    for (int z = lo[2]; z < hi[2]; z++)
+        for (int y = lo[1]; y < hi[1]; y++, k += (size_t)bx)
+            memcpy(g->data + ((size_t)z * g->ny + y) * g->nx + lo[0], box + k, (size_t)bx * sizeof *box);
+    free(box);
+    /* The range changes locally unless the box held the old extreme and
+     * gave it up; only then is the whole grid rescanned. */
+    if ((old_hi >= g->max_value && new_hi < old_hi) || (old_lo <= g->min_value && new_lo > old_lo)) {
+        lu_grid_update_range(g);
+    } else {
+        g->min_value = fminf(g->min_value, new_lo);
+        g->max_value = fmaxf(g->max_value, new_hi);
+    }
+    stamp_edit(g, lo, hi);
+    return LU_OK;
 }
 
 /* Texel centres sit on integers and every texel outside [0, n-1] reads 0,
