@@ -36,6 +36,7 @@ static void usage(void) {
            "                      Warm-up frames render step 0; one renderer renders them all\n"
            "  --reference FILE    use this image as the truth instead of rendering it (one scene,\n"
            "                      still only)\n"
+           "  --no-truth          render no truth: timings only, the error columns stay empty\n"
            "  --save-images DIR   write each row's last frame as DIR/<method>-<backend>.exr (with\n"
            "                      the scene, motion and sweep index in the name when there are several)\n"
            "  --csv FILE          also write the table as CSV\n"
@@ -509,6 +510,7 @@ typedef struct bench_opts {
     sweep sweeps[MAX_SWEEPS];
     int nsweeps;
     const char *csv, *json, *ref_path, *img_dir;
+    bool no_truth;
 } bench_opts;
 
 static int parse_motions(const char *arg, bool *motions) {
@@ -565,6 +567,8 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
             motion_given = true;
         } else if (strcmp(a, "--reference") == 0 && has_next) {
             o->ref_path = argv[++i];
+        } else if (strcmp(a, "--no-truth") == 0) {
+            o->no_truth = true;
         } else if (strcmp(a, "--save-images") == 0 && has_next) {
             o->img_dir = argv[++i];
         } else if (strcmp(a, "--csv") == 0 && has_next) {
@@ -615,6 +619,7 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
     for (int k = 0; k < MOTION_COUNT; k++) nmot += o->motions[k];
     rows *= (long)o->nscenes * o->nbackends * nmot;
     if (rows > MAX_ROWS) return lu_cli_usage("bench", "%ld rows requested; at most %d", rows, MAX_ROWS);
+    if (o->ref_path && o->no_truth) return lu_cli_usage("bench", "--reference and --no-truth exclude each other");
     if (o->ref_path && (o->nscenes > 1 || nmot > 1 || !o->motions[MOTION_STILL]))
         return lu_cli_usage("bench", "--reference takes one SCENE and --motion still only");
     for (int i = 0; i < o->nscenes; i++) {
@@ -659,15 +664,15 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
             if (res == LU_OK && (truth_first.width != scene->camera.width || truth_first.height != scene->camera.height))
                 res = lu_fail(err, LU_ERR_INVALID_ARG, "%s is %dx%d but the scene renders %dx%d", o->ref_path,
                               truth_first.width, truth_first.height, scene->camera.width, scene->camera.height);
-        } else if (res == LU_OK) {
+        } else if (res == LU_OK && !o->no_truth) {
             fprintf(stderr, "lucent bench: %s: rendering the reference (the truth), %s ...\n", path,
                     k_motion_names[mo]);
             res = render_truth(&ms, first_step, &o->settings, &truth_first, &truth_first_ms, err);
         }
-        if (res == LU_OK && last_step != first_step)
+        if (res == LU_OK && last_step != first_step && !o->no_truth)
             res = render_truth(&ms, last_step, &o->settings, &truth_last, &truth_last_ms, err);
         const lu_image *tlast = last_step != first_step ? &truth_last : &truth_first;
-        if (res == LU_OK && o->img_dir) {
+        if (res == LU_OK && o->img_dir && !o->no_truth) {
             char p[1400];
             if (mo == MOTION_STILL) {
                 snprintf(p, sizeof p, "%s/%s%struth.exr", o->img_dir, o->nscenes > 1 ? stem : "",
@@ -705,7 +710,7 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     res = combo_settings(&o->settings, o->sweeps, o->nsweeps, m->name, c, &settings, r->params,
                                          sizeof r->params, err);
                     lu_image first = {0}, last = {0};
-                    bool reuse = is_ref && o->backends[b] == LU_BACKEND_CPU && !o->ref_path && !r->params[0] &&
+                    bool reuse = is_ref && o->backends[b] == LU_BACKEND_CPU && !o->ref_path && !o->no_truth && !r->params[0] &&
                                  !truth_row_used;
                     if (res == LU_OK && reuse) {
                         /* The truth of the first state is this row's one frame. */
@@ -726,18 +731,19 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     lu_kv_free(&settings);
                     /* The reference renders one frame: its last state is the first. */
                     const lu_image *tl = r->frames == frames ? tlast : &truth_first;
-                    lu_metrics mf, ml;
-                    if (res == LU_OK) res = lu_image_compare(&first, &truth_first, &mf, err);
-                    if (res == LU_OK) res = lu_image_compare(&last, tl, &ml, err);
-                    if (res == LU_OK) {
-                        r->err = ml;
-                        r->has_err = true;
-                        r->rel_l2_first = mf.rel_l2;
-                        r->rel_l2_last = ml.rel_l2;
-                        lu_metrics d;
-                        res = lu_image_compare(&last, &first, &d, err);
-                        r->last_vs_first = d.rel_l2;
+                    lu_metrics mf, ml, d;
+                    if (res == LU_OK && !o->no_truth) {
+                        res = lu_image_compare(&first, &truth_first, &mf, err);
+                        if (res == LU_OK) res = lu_image_compare(&last, tl, &ml, err);
+                        if (res == LU_OK) {
+                            r->err = ml;
+                            r->has_err = true;
+                            r->rel_l2_first = mf.rel_l2;
+                            r->rel_l2_last = ml.rel_l2;
+                        }
                     }
+                    if (res == LU_OK) res = lu_image_compare(&last, &first, &d, err);
+                    if (res == LU_OK) r->last_vs_first = d.rel_l2;
                     if (res == LU_OK) {
                         r->spp_equiv = r->median_ms * 1e-3 * gsps * 1e9 / (double)pixels;
                         r->load_avg = load_avg_1min();

@@ -79,6 +79,12 @@ done
 grep -q "^yardstick .* G samples/s" "$tmp/table.txt" || { echo "FAIL: no yardstick line"; cat "$tmp/table.txt"; exit 1; }
 grep -q "load average" "$tmp/table.txt" || { echo "FAIL: no load average"; exit 1; }
 
+# --no-truth: timings and the frame-to-frame change only, no error columns.
+"$lucent" bench "$src/scenes/spot_shaft.json" --methods raymarch --size 24x18 --frames 2 --motion orbit --no-truth \
+  --set raymarch.steps=32 --csv "$tmp/n.csv" >/dev/null 2>&1
+awk -F, -v f="$c_first" -v r=11 -v d="$c_lvf" 'NR == 2 { exit !($f == "" && $r == "" && $d > 0) } END { exit NR != 2 }' "$tmp/n.csv" ||
+  { echo "FAIL: --no-truth row"; cat "$tmp/n.csv"; exit 1; }
+
 # Bad sweeps and motions are usage errors (exit 2) naming the argument.
 expect_usage() {
   local want=$1
@@ -99,5 +105,6 @@ expect_usage "outside" --sweep raymarch.steps=64,1
 expect_usage "given twice" --sweep raymarch.steps=64 --sweep raymarch.steps=128
 expect_usage "not among --methods" --methods reference --sweep raymarch.steps=64
 expect_usage "unknown motion" --motion spin
+expect_usage "exclude each other" --reference "$tmp/img/spot_shaft-truth.exr" --no-truth
 expect_usage "one SCENE" --reference "$tmp/img/spot_shaft-truth.exr" --motion orbit
 echo ok
