@@ -247,6 +247,8 @@ static int parse_sweep(const char *arg, sweep *sw, const sweep *prev, int nprev)
         char *comma = strchr(p, ',');
         if (comma) *comma = '\0';
         if (*p == '\0') return lu_cli_usage("bench", "--sweep \"%s\": empty value in the list", arg);
+        if (strlen(p) >= LU_KV_STR_MAX)
+            return lu_cli_usage("bench", "--sweep %s: a value longer than %d characters", sw->key, LU_KV_STR_MAX - 1);
         if (sw->count == MAX_SWEEP_VALUES)
             return lu_cli_usage("bench", "--sweep %s: more than %d values", sw->key, MAX_SWEEP_VALUES);
         sw->values[sw->count++] = p;
@@ -268,6 +270,16 @@ static int parse_sweep(const char *arg, sweep *sw, const sweep *prev, int nprev)
     return LU_EXIT_OK;
 }
 
+/* Appends s to dst (capacity size, *used bytes so far), cutting it short
+ * rather than overflowing. */
+static void append(char *dst, size_t size, size_t *used, const char *s) {
+    size_t n = strlen(s);
+    if (*used + n >= size) n = size - 1 - *used;
+    memcpy(dst + *used, s, n);
+    *used += n;
+    dst[*used] = '\0';
+}
+
 /* Settings for combination `combo` of method m's sweeps (the first sweep
  * varies slowest), on top of the --set list; label gets "k=v k=v". */
 static lu_result combo_settings(const lu_kvlist *base, const sweep *sw, int nsw, const char *method, int combo,
@@ -279,17 +291,23 @@ static lu_result combo_settings(const lu_kvlist *base, const sweep *sw, int nsw,
         const lu_kv *kv = &base->items[i];
         r = kv->count ? lu_kv_set_number(out, kv->key, kv->v, kv->count, err) : lu_kv_set_string(out, kv->key, kv->str, err);
     }
-    int radix = 1;
-    for (int i = nsw - 1; i >= 0 && r == LU_OK; i--) {
+    int radix = 1, pick[MAX_SWEEPS];
+    for (int i = nsw - 1; i >= 0; i--) {
         if (strcmp(sw[i].method, method) != 0) continue;
-        const char *v = sw[i].values[(combo / radix) % sw[i].count];
+        pick[i] = (combo / radix) % sw[i].count;
         radix *= sw[i].count;
+    }
+    size_t used = 0;
+    for (int i = 0; i < nsw && r == LU_OK; i++) {
+        if (strcmp(sw[i].method, method) != 0) continue;
         char assign[LU_KV_KEY_MAX + LU_KV_STR_MAX + 2];
-        snprintf(assign, sizeof assign, "%s=%s", sw[i].key, v);
+        size_t alen = 0;
+        append(assign, sizeof assign, &alen, sw[i].key);
+        append(assign, sizeof assign, &alen, "=");
+        append(assign, sizeof assign, &alen, sw[i].values[pick[i]]);
         r = lu_kv_parse_assignment(out, assign, err);
-        char tmp[512];
-        snprintf(tmp, sizeof tmp, "%s%s%s", assign, label[0] ? " " : "", label);
-        snprintf(label, label_size, "%s", tmp);
+        if (used) append(label, label_size, &used, " ");
+        append(label, label_size, &used, assign);
     }
     return r;
 }
