@@ -471,16 +471,17 @@ static void json_string(FILE *f, const char *s) {
     fputc('"', f);
 }
 
-static bool write_json(const char *path, const row *rows, int n, double gsps, int ys_threads, const char *scene0,
-                       lu_error *err) {
+static bool write_json(const char *path, const row *rows, int n, double gsps, double gsps_end, int ys_threads,
+                       const char *scene0, lu_error *err) {
     lu_atomic_file af;
     if (lu_atomic_open(&af, path, err) != LU_OK) return false;
     FILE *f = af.fp;
     fprintf(f, "{\"scene\": ");
     json_string(f, scene0);
-    fprintf(f, ", \"width\": %d, \"height\": %d, \"threads\": %d, \"yardstick_gsps\": %.4f, \"yardstick_threads\": %d, "
-               "\"load_avg\": %.2f, \"rows\": [\n",
-            n ? rows[0].width : 0, n ? rows[0].height : 0, lu_thread_count(), gsps, ys_threads, load_avg_1min());
+    fprintf(f, ", \"width\": %d, \"height\": %d, \"threads\": %d, \"yardstick_gsps\": %.4f, \"yardstick_gsps_end\": %.4f, "
+               "\"yardstick_threads\": %d, \"load_avg\": %.2f, \"rows\": [\n",
+            n ? rows[0].width : 0, n ? rows[0].height : 0, lu_thread_count(), gsps, gsps_end, ys_threads,
+            load_avg_1min());
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
         fprintf(f, "  {\"scene\": ");
@@ -816,17 +817,21 @@ int lu_cmd_bench(int argc, char **argv) {
         lu_scene_destroy(&scene);
     }
     if (rc == LU_EXIT_OK) {
+        /* Timed again at the end: the two differ when the machine's load
+         * changed during the run, and then so does the meaning of spp_eq. */
+        double gsps_end = lu_yardstick_gsps(5, &ys_threads);
         double l[3] = {0, 0, 0};
         getloadavg(l, 3);
         if (o.nscenes == 1)
             printf("scene %s, %dx%d, %d threads\n", o.scenes[0], nrows ? rows[0].width : 0, nrows ? rows[0].height : 0,
                    lu_thread_count());
         else printf("%d scenes, %d threads\n", o.nscenes, lu_thread_count());
-        printf("yardstick %.4f G samples/s (%d threads); load average %.2f at the start, %.2f %.2f %.2f at the end\n",
-               gsps, ys_threads, load0, l[0], l[1], l[2]);
+        printf("yardstick %.4f G samples/s (%.4f at the end, %d threads); load average %.2f at the start, "
+               "%.2f %.2f %.2f at the end\n",
+               gsps, gsps_end, ys_threads, load0, l[0], l[1], l[2]);
         print_table(stdout, rows, nrows);
         if (o.csv && !write_csv(o.csv, rows, nrows, gsps, &err)) rc = lu_cli_error("bench", &err);
-        if (o.json && !write_json(o.json, rows, nrows, gsps, ys_threads, o.scenes[0], &err))
+        if (o.json && !write_json(o.json, rows, nrows, gsps, gsps_end, ys_threads, o.scenes[0], &err))
             rc = lu_cli_error("bench", &err);
     }
     free(rows);
