@@ -3,6 +3,7 @@
 #define LU_CLI_H
 
 #include <lucent/lucent.h>
+#include <stdio.h>
 
 /* Exit codes (documented in `lucent --help` and the README). */
 enum { LU_EXIT_OK = 0, LU_EXIT_FAIL = 1, LU_EXIT_USAGE = 2, LU_EXIT_THRESHOLD = 3 };
@@ -32,5 +33,9 @@ bool lu_cli_parse_backend(const char *s, lu_backend *b);
 int lu_cli_load_scene(const char *cmd, const char *path, int width, int height, lu_scene *scene);
 /* Lists every method, its backends and parameters (for --help texts). */
 void lu_cli_print_methods(FILE *out);
+/* bench's fixed measure of the machine (cli/yardstick.c): the median of
+ * `repetitions` timed passes, in G trilinear samples per second, on all
+ * processors (their number in *threads). 0 if out of memory. */
+double lu_yardstick_gsps(int repetitions, int *threads);
 
 #endif

@@ -1,6 +1,8 @@
-/* lucent bench SCENE.json --methods a,b — per-frame time after warm-up,
+/* lucent bench SCENE.json... --methods a,b — per-frame time after warm-up,
  * prepare time, peak memory, and error against the reference of the same
- * scene, all measured in one run (docs/architecture.md §8). */
+ * scene, all measured in one run (docs/architecture.md §8); parameter sweeps,
+ * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c). */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,37 +11,331 @@
 #include "cli.h"
 
 static void usage(void) {
-    printf("usage: lucent bench SCENE.json --methods a,b,... [options]\n"
+    printf("usage: lucent bench SCENE.json... --methods a,b,... [options]\n"
            "\n"
-           "For each method (and backend): prepare once (timed), render --warmup frames,\n"
-           "then --frames timed frames; reports the median frame time, prepare time, the\n"
-           "method's peak resident memory, and rel-L2 / PSNR against the reference image.\n"
+           "For each scene, motion, method, backend and combination of --sweep values: prepare\n"
+           "once (timed), render --warmup frames, then --frames timed frames; reports the median\n"
+           "frame time, prepare time, the method's peak resident memory, rel-L2 / PSNR against\n"
+           "the reference image, and the frame time in sample-equivalents per pixel (below).\n"
            "\n"
            "options:\n"
-           "  --methods LIST      comma-separated methods (default: reference)\n"
+           "  --methods LIST      comma-separated methods (default: the swept methods, else reference)\n"
            "  --backends LIST     cpu, gpu or cpu,gpu (default: cpu); methods skip backends they lack\n"
-           "  --frames N          timed frames per method (default 5; the reference method: 1)\n"
+           "  --frames N          timed frames per row (default 5 still, 8 for a motion; reference: 1)\n"
            "  --warmup N          untimed frames first (default 1; the reference method: 0)\n"
            "  --size WxH          override the camera's image size\n"
            "  --set M.P=V         method parameter (repeatable); reference.* also shapes the truth\n"
-           "  --reference FILE    use this image as the truth instead of rendering it\n"
-           "  --save-images DIR   write each method's last frame as DIR/<method>-<backend>.exr\n"
+           "  --sweep M.P=V1,V2   one row per value (repeatable; rows = the cross product of the\n"
+           "                      sweeps of each method); overrides --set for that parameter\n"
+           "  --motion LIST       still, orbit, light, medium (repeatable or comma list; default\n"
+           "                      still). Timed frame k renders the scene k steps into the motion:\n"
+           "                      orbit: the camera turns 4 deg per step about look_at and up;\n"
+           "                      light: the first non-environment light turns 4 deg per step\n"
+           "                      about the same axis; medium: a Gaussian blob of density added\n"
+           "                      to the first grid medium moves one voxel along x per step.\n"
+           "                      Warm-up frames render step 0; one renderer renders them all\n"
+           "  --reference FILE    use this image as the truth instead of rendering it (one scene,\n"
+           "                      still only)\n"
+           "  --no-truth          render no truth: timings only, the error columns stay empty\n"
+           "  --save-images DIR   write each row's last frame as DIR/<method>-<backend>.exr (with\n"
+           "                      the scene, motion and sweep index in the name when there are several)\n"
            "  --csv FILE          also write the table as CSV\n"
            "  --json FILE         also write the table as JSON\n"
            "\n"
            "Timings are wall-clock (monotonic) medians; compare methods as ratios within one\n"
-           "run. The truth is the reference method at its settings on the CPU; when reference\n"
-           "is among --methods its first frame is reused rather than rendered twice.\n");
+           "run. The truth is the reference method at its settings on the CPU, rendered for the\n"
+           "first and the last timed state of each motion; when reference is among --methods\n"
+           "it reuses that render rather than rendering twice. Each run also times a fixed\n"
+           "yardstick (trilinear samples over a 128^3 grid on all processors) and states each\n"
+           "frame as frame time x yardstick throughput / pixels (spp_eq).\n");
 }
 
+/* ---- motions ------------------------------------------------------------- */
+
+typedef enum motion { MOTION_STILL = 0, MOTION_ORBIT, MOTION_LIGHT, MOTION_MEDIUM, MOTION_COUNT } motion;
+static const char *const k_motion_names[MOTION_COUNT] = {"still", "orbit", "light", "medium"};
+
+#define STEP_DEG 4.0f
+
+/* A scene and the means to put it into any step of one motion. Steps are
+ * computed from the saved step-0 values, so no error accumulates. */
+typedef struct motion_state {
+    motion kind;
+    lu_scene *scene;
+    lu_camera camera0;
+    int light;            /* MOTION_LIGHT: index of the light that moves */
+    lu_light light0;
+    lu_grid *grid;        /* MOTION_MEDIUM */
+    float *base;          /* the grid's values as loaded */
+    float sigma, amplitude;
+    int radius, cy, cz, cx0, step; /* blob: centre (blob_x(step), cy, cz) in voxels */
+    bool blob_on;
+} motion_state;
+
+/* Rotates v by angle a (radians) about the unit axis k (Rodrigues). */
+static lu_vec3 rotate_about(lu_vec3 v, lu_vec3 k, float a) {
+    float c = cosf(a), s = sinf(a);
+    lu_vec3 r = lu_v3_add(lu_v3_scale(v, c), lu_v3_scale(lu_v3_cross(k, v), s));
+    return lu_v3_madd(r, k, lu_v3_dot(k, v) * (1.0f - c));
+}
+
+typedef struct blob_ctx {
+    const motion_state *ms;
+    int cx;
+} blob_ctx;
+
+/* The blob's x at step k: from nx/2 - frames/2 one voxel per step, turning
+ * back at the grid's faces, so any number of frames stays inside. */
+static int blob_x(const motion_state *ms, int k) {
+    int n = ms->grid->nx;
+    if (n < 2) return 0;
+    int period = 2 * (n - 1), t = (ms->cx0 + k) % period;
+    if (t < 0) t += period;
+    return t < n ? t : period - t;
+}
+
+static float blob_value(const motion_state *ms, int cx, int x, int y, int z) {
+    int dx = x - cx, dy = y - ms->cy, dz = z - ms->cz;
+    if (abs(dx) > ms->radius || abs(dy) > ms->radius || abs(dz) > ms->radius) return 0.0f;
+    float d2 = (float)(dx * dx + dy * dy + dz * dz);
+    return ms->amplitude * expf(-0.5f * d2 / (ms->sigma * ms->sigma));
+}
+
+static float blob_edit(void *ctx, int x, int y, int z, float value) {
+    const blob_ctx *b = ctx;
+    const lu_grid *g = b->ms->grid;
+    (void)value;
+    return b->ms->base[((size_t)z * g->ny + y) * g->nx + x] + blob_value(b->ms, b->cx, x, y, z);
+}
+
+static void blob_box(const motion_state *ms, int cx, int lo[3], int hi[3]) {
+    const int c[3] = {cx, ms->cy, ms->cz}, n[3] = {ms->grid->nx, ms->grid->ny, ms->grid->nz};
+    for (int a = 0; a < 3; a++) {
+        lo[a] = c[a] - ms->radius < 0 ? 0 : c[a] - ms->radius;
+        hi[a] = c[a] + ms->radius + 1 > n[a] ? n[a] : c[a] + ms->radius + 1;
+    }
+}
+
+/* Puts the scene into step k. The medium edit rewrites the union of the
+ * blob's old and new boxes through the density-edit API, so renderers see a
+ * local, non-uniform change with a new grid generation. */
+static lu_result motion_set(motion_state *ms, int k, lu_error *err) {
+    lu_scene *s = ms->scene;
+    float a = (float)k * STEP_DEG * (float)M_PI / 180.0f;
+    lu_vec3 axis = lu_v3_norm(ms->camera0.up), pivot = ms->camera0.look_at;
+    switch (ms->kind) {
+    case MOTION_STILL: return LU_OK;
+    case MOTION_ORBIT:
+        s->camera.position = lu_v3_add(pivot, rotate_about(lu_v3_sub(ms->camera0.position, pivot), axis, a));
+        return LU_OK;
+    case MOTION_LIGHT: {
+        lu_light *l = &s->lights[ms->light];
+        if (l->type != LU_LIGHT_DIRECTIONAL)
+            l->position = lu_v3_add(pivot, rotate_about(lu_v3_sub(ms->light0.position, pivot), axis, a));
+        if (l->type != LU_LIGHT_POINT) l->direction = lu_v3_norm(rotate_about(ms->light0.direction, axis, a));
+        return LU_OK;
+    }
+    case MOTION_MEDIUM: {
+        int cx = blob_x(ms, k), lo[3], hi[3];
+        blob_box(ms, cx, lo, hi);
+        if (ms->blob_on) {
+            int olo[3], ohi[3];
+            blob_box(ms, blob_x(ms, ms->step), olo, ohi);
+            for (int i = 0; i < 3; i++) {
+                lo[i] = olo[i] < lo[i] ? olo[i] : lo[i];
+                hi[i] = ohi[i] > hi[i] ? ohi[i] : hi[i];
+            }
+        }
+        blob_ctx b = {ms, cx};
+        lu_result r = lu_grid_apply(ms->grid, lo, hi, blob_edit, &b, err);
+        if (r == LU_OK) {
+            ms->step = k;
+            ms->blob_on = true;
+        }
+        return r;
+    }
+    default: return LU_OK;
+    }
+}
+
+/* Prepares a motion on the scene; *available false (with a note) when the
+ * scene has nothing the motion can move. Leaves the scene at step 0. */
+static lu_result motion_begin(motion_state *ms, motion kind, lu_scene *scene, int frames, bool *available,
+                              lu_error *err) {
+    memset(ms, 0, sizeof *ms);
+    ms->kind = kind;
+    ms->scene = scene;
+    ms->camera0 = scene->camera;
+    *available = true;
+    if (kind == MOTION_LIGHT) {
+        ms->light = -1;
+        for (int i = 0; i < scene->light_count && ms->light < 0; i++)
+            if (scene->lights[i].type != LU_LIGHT_ENVIRONMENT) ms->light = i;
+        if (ms->light < 0) *available = false;
+        else ms->light0 = scene->lights[ms->light];
+    } else if (kind == MOTION_MEDIUM) {
+        for (int i = 0; i < scene->medium_count && !ms->grid; i++)
+            if (lu_scene_medium_grid(scene, i, &ms->grid, NULL) != LU_OK) ms->grid = NULL;
+        if (!ms->grid) {
+            *available = false;
+            return LU_OK;
+        }
+        const lu_grid *g = ms->grid;
+        size_t n = (size_t)g->nx * g->ny * g->nz;
+        ms->base = malloc(n * sizeof *ms->base);
+        if (!ms->base) return lu_fail(err, LU_ERR_NOMEM, "bench: out of memory copying the grid");
+        memcpy(ms->base, g->data, n * sizeof *ms->base);
+        int longest = g->nx > g->ny ? (g->nx > g->nz ? g->nx : g->nz) : (g->ny > g->nz ? g->ny : g->nz);
+        /* A blob a sixteenth of the grid wide, as dense as the densest voxel,
+         * passing through the grid's centre at the middle of the sequence. */
+        ms->sigma = fmaxf(1.5f, (float)longest / 16.0f);
+        ms->radius = (int)ceilf(3.0f * ms->sigma);
+        ms->amplitude = g->max_value > 0.0f ? g->max_value : 1.0f;
+        ms->cy = g->ny / 2;
+        ms->cz = g->nz / 2;
+        ms->cx0 = g->nx / 2 - frames / 2;
+    }
+    return *available ? motion_set(ms, 0, err) : LU_OK;
+}
+
+/* Back to the scene as loaded. */
+static lu_result motion_end(motion_state *ms, lu_error *err) {
+    lu_result r = LU_OK;
+    ms->scene->camera = ms->camera0;
+    if (ms->kind == MOTION_LIGHT && ms->light >= 0) ms->scene->lights[ms->light] = ms->light0;
+    if (ms->kind == MOTION_MEDIUM && ms->grid && ms->blob_on)
+        r = lu_grid_set_values(ms->grid, ms->base, (size_t)ms->grid->nx * ms->grid->ny * ms->grid->nz, err);
+    free(ms->base);
+    ms->base = NULL;
+    return r;
+}
+
+/* ---- sweeps -------------------------------------------------------------- */
+
+#define MAX_SWEEPS 16
+#define MAX_SWEEP_VALUES 64
+#define MAX_METHODS 32
+#define MAX_SCENES 64
+#define MAX_ROWS 4096
+
+typedef struct sweep {
+    char key[LU_KV_KEY_MAX];   /* method.param */
+    char method[LU_KV_KEY_MAX];
+    char *text;                /* owns the value strings */
+    char *values[MAX_SWEEP_VALUES];
+    int count;
+} sweep;
+
+/* Parses "method.param=v1,v2,..." and checks every value against the
+ * method's parameter table, so a typo fails before anything renders. */
+static int parse_sweep(const char *arg, sweep *sw, const sweep *prev, int nprev) {
+    memset(sw, 0, sizeof *sw);
+    const char *eq = strchr(arg, '=');
+    const char *dot = strchr(arg, '.');
+    if (!eq || !dot || dot > eq || dot == arg || dot + 1 == eq || eq[1] == '\0')
+        return lu_cli_usage("bench", "--sweep \"%s\": expected method.param=v1,v2,...", arg);
+    if ((size_t)(eq - arg) >= sizeof sw->key) return lu_cli_usage("bench", "--sweep \"%s\": name too long", arg);
+    snprintf(sw->key, sizeof sw->key, "%.*s", (int)(eq - arg), arg);
+    snprintf(sw->method, sizeof sw->method, "%.*s", (int)(dot - arg), arg);
+    for (int i = 0; i < nprev; i++)
+        if (strcmp(prev[i].key, sw->key) == 0) return lu_cli_usage("bench", "--sweep %s given twice", sw->key);
+    const lu_method *m = lu_method_find(sw->method);
+    if (!m) return lu_cli_usage("bench", "--sweep %s: no method named \"%s\"", sw->key, sw->method);
+    sw->text = strdup(eq + 1);
+    if (!sw->text) return lu_cli_usage("bench", "out of memory");
+    for (char *p = sw->text;;) {
+        char *comma = strchr(p, ',');
+        if (comma) *comma = '\0';
+        if (*p == '\0') return lu_cli_usage("bench", "--sweep \"%s\": empty value in the list", arg);
+        if (strlen(p) >= LU_KV_STR_MAX)
+            return lu_cli_usage("bench", "--sweep %s: a value longer than %d characters", sw->key, LU_KV_STR_MAX - 1);
+        if (sw->count == MAX_SWEEP_VALUES)
+            return lu_cli_usage("bench", "--sweep %s: more than %d values", sw->key, MAX_SWEEP_VALUES);
+        sw->values[sw->count++] = p;
+        if (!comma) break;
+        p = comma + 1;
+    }
+    for (int i = 0; i < sw->count; i++) {
+        char assign[LU_KV_KEY_MAX + LU_KV_STR_MAX + 2];
+        snprintf(assign, sizeof assign, "%s=%s", sw->key, sw->values[i]);
+        lu_kvlist kv = {0};
+        lu_error err = {0};
+        double vals[LU_MAX_PARAMS];
+        lu_result r = lu_kv_parse_assignment(&kv, assign, &err);
+        if (r == LU_OK) r = lu_settings_validate(&kv, &err);
+        if (r == LU_OK) r = lu_method_resolve_params(m, &kv, vals, &err);
+        lu_kv_free(&kv);
+        if (r != LU_OK) return lu_cli_usage("bench", "--sweep %s: %s", sw->key, err.message);
+    }
+    return LU_EXIT_OK;
+}
+
+/* Appends s to dst (capacity size, *used bytes so far), cutting it short
+ * rather than overflowing. */
+static void append(char *dst, size_t size, size_t *used, const char *s) {
+    size_t n = strlen(s);
+    if (*used + n >= size) n = size - 1 - *used;
+    memcpy(dst + *used, s, n);
+    *used += n;
+    dst[*used] = '\0';
+}
+
+/* Settings for combination `combo` of method m's sweeps (the first sweep
+ * varies slowest), on top of the --set list; label gets "k=v k=v". */
+static lu_result combo_settings(const lu_kvlist *base, const sweep *sw, int nsw, const char *method, int combo,
+                                lu_kvlist *out, char *label, size_t label_size, lu_error *err) {
+    memset(out, 0, sizeof *out);
+    label[0] = '\0';
+    lu_result r = LU_OK;
+    for (int i = 0; i < base->count && r == LU_OK; i++) {
+        const lu_kv *kv = &base->items[i];
+        r = kv->count ? lu_kv_set_number(out, kv->key, kv->v, kv->count, err) : lu_kv_set_string(out, kv->key, kv->str, err);
+    }
+    int radix = 1, pick[MAX_SWEEPS];
+    for (int i = nsw - 1; i >= 0; i--) {
+        if (strcmp(sw[i].method, method) != 0) continue;
+        pick[i] = (combo / radix) % sw[i].count;
+        radix *= sw[i].count;
+    }
+    size_t used = 0;
+    for (int i = 0; i < nsw && r == LU_OK; i++) {
+        if (strcmp(sw[i].method, method) != 0) continue;
+        char assign[LU_KV_KEY_MAX + LU_KV_STR_MAX + 2];
+        size_t alen = 0;
+        append(assign, sizeof assign, &alen, sw[i].key);
+        append(assign, sizeof assign, &alen, "=");
+        append(assign, sizeof assign, &alen, sw[i].values[pick[i]]);
+        r = lu_kv_parse_assignment(out, assign, err);
+        if (used) append(label, label_size, &used, " ");
+        append(label, label_size, &used, assign);
+    }
+    return r;
+}
+
+static int combo_count(const sweep *sw, int nsw, const char *method) {
+    int n = 1;
+    for (int i = 0; i < nsw; i++)
+        if (strcmp(sw[i].method, method) == 0) n *= sw[i].count;
+    return n;
+}
+
+/* ---- rows ---------------------------------------------------------------- */
+
 typedef struct row {
+    const char *scene;      /* the SCENE argument */
+    int width, height;
     const char *method;
     lu_backend backend;
+    motion motion;
+    char params[512];       /* the sweep values of this row, "" without sweeps */
     double prepare_ms, median_ms, min_ms, max_ms;
+    double ref_ms;          /* the truth's render time for this row's first state */
     double peak_mb;
     int frames;
-    lu_metrics err;
+    lu_metrics err;         /* the last frame against the truth of its state */
     bool has_err;
+    double rel_l2_first, rel_l2_last, last_vs_first;
+    double spp_equiv, load_avg;
 } row;
 
 static int cmp_double(const void *a, const void *b) {
@@ -53,103 +349,209 @@ static int split_list(char *s, char **items, int max) {
     return n;
 }
 
-/* Renders one method/backend; keeps the last frame in *img. */
-static lu_result bench_one(const lu_scene *scene, const char *method, lu_backend backend, const lu_kvlist *settings,
-                           int warmup, int frames, row *out, lu_image *img, lu_error *err) {
-    memset(out, 0, sizeof *out);
+static double load_avg_1min(void) {
+    double l[3];
+    return getloadavg(l, 3) >= 1 ? l[0] : -1.0;
+}
+
+static lu_result image_copy(const lu_image *src, lu_image *dst, lu_error *err) {
+    if (dst->width != src->width || dst->height != src->height) {
+        lu_image_destroy(dst);
+        lu_result r = lu_image_create(dst, src->width, src->height, err);
+        if (r != LU_OK) return r;
+    }
+    memcpy(dst->rgb, src->rgb, (size_t)src->width * src->height * 3 * sizeof *src->rgb);
+    return LU_OK;
+}
+
+/* Renders one row: prepare once at step 0, warm-up frames at step 0, timed
+ * frame k at step k (1..frames; still: always step 0). Keeps the first and
+ * the last timed frame. Leaves the scene at step 0 of the motion. */
+static lu_result bench_one(motion_state *ms, const char *method, lu_backend backend, const lu_kvlist *settings,
+                           int warmup, int frames, row *out, lu_image *first, lu_image *last, lu_error *err) {
     out->method = method;
     out->backend = backend;
     lu_peak_rss_reset();
     size_t rss0 = lu_peak_rss_bytes();
     lu_renderer *r;
-    lu_result res = lu_renderer_create(method, scene, settings, backend, &r, err);
+    lu_result res = lu_renderer_create(method, ms->scene, settings, backend, &r, err);
     if (res != LU_OK) return res;
     out->prepare_ms = r->prepare_ms;
-    double *ms = calloc((size_t)frames, sizeof *ms);
-    if (!ms) {
+    double *ms_list = calloc((size_t)frames, sizeof *ms_list);
+    if (!ms_list) {
         lu_renderer_destroy(r);
         return lu_fail(err, LU_ERR_NOMEM, "out of memory");
     }
-    for (int i = 0; i < warmup + frames && res == LU_OK; i++) {
-        res = lu_renderer_render(r, scene, img, err);
-        if (i >= warmup) ms[i - warmup] = r->last_render_ms;
+    for (int i = 0; i < warmup && res == LU_OK; i++) res = lu_renderer_render(r, ms->scene, last, err);
+    for (int k = 1; k <= frames && res == LU_OK; k++) {
+        res = motion_set(ms, ms->kind == MOTION_STILL ? 0 : k, err);
+        if (res == LU_OK) res = lu_renderer_render(r, ms->scene, last, err);
+        if (res == LU_OK) ms_list[k - 1] = r->last_render_ms;
+        if (res == LU_OK && k == 1) res = image_copy(last, first, err);
     }
+    if (res == LU_OK) res = motion_set(ms, 0, err);
     if (res == LU_OK) {
-        qsort(ms, (size_t)frames, sizeof *ms, cmp_double);
+        qsort(ms_list, (size_t)frames, sizeof *ms_list, cmp_double);
         out->frames = frames;
-        out->min_ms = ms[0];
-        out->max_ms = ms[frames - 1];
-        out->median_ms = frames % 2 ? ms[frames / 2] : 0.5 * (ms[frames / 2 - 1] + ms[frames / 2]);
+        out->min_ms = ms_list[0];
+        out->max_ms = ms_list[frames - 1];
+        out->median_ms = frames % 2 ? ms_list[frames / 2] : 0.5 * (ms_list[frames / 2 - 1] + ms_list[frames / 2]);
         size_t rss1 = lu_peak_rss_bytes();
         out->peak_mb = (double)(rss1 > rss0 ? rss1 : rss0) / (1024.0 * 1024.0);
     }
-    free(ms);
+    free(ms_list);
     lu_renderer_destroy(r);
     return res;
 }
 
-static void print_table(FILE *f, const row *rows, int n, double ref_ms) {
-    fprintf(f, "%-12s %-4s %12s %12s %10s %10s %10s %9s\n", "method", "dev", "prepare_ms", "frame_ms", "x_vs_ref",
-            "peak_MB", "rel_l2", "psnr_dB");
+/* The truth at step k: the reference at its settings on the CPU, a fresh
+ * renderer for that state. Leaves the scene at step 0. */
+static lu_result render_truth(motion_state *ms, int k, const lu_kvlist *settings, lu_image *img, double *ms_out,
+                              lu_error *err) {
+    lu_result r = motion_set(ms, k, err);
+    lu_renderer *rd = NULL;
+    if (r == LU_OK) r = lu_renderer_create("reference", ms->scene, settings, LU_BACKEND_CPU, &rd, err);
+    if (r == LU_OK) r = lu_renderer_render(rd, ms->scene, img, err);
+    if (r == LU_OK) *ms_out = rd->last_render_ms;
+    lu_renderer_destroy(rd);
+    lu_result r2 = motion_set(ms, 0, err);
+    return r != LU_OK ? r : r2;
+}
+
+static double psnr_out(double p) { return isinf(p) ? 999.0 : p; }
+
+static void print_table(FILE *f, const row *rows, int n) {
+    fprintf(f, "%-12s %-4s %12s %12s %10s %10s %10s %9s %-7s %12s %10s  %s\n", "method", "dev", "prepare_ms",
+            "frame_ms", "x_vs_ref", "peak_MB", "rel_l2", "psnr_dB", "motion", "rel_l2_first", "spp_eq", "scene params");
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
         fprintf(f, "%-12s %-4s %12.2f %12.2f %10.2f %10.1f ", r->method, lu_backend_name(r->backend), r->prepare_ms,
-                r->median_ms, ref_ms > 0 ? ref_ms / r->median_ms : 0.0, r->peak_mb);
-        if (r->has_err) fprintf(f, "%10.5f %9.2f\n", r->err.rel_l2, isinf(r->err.psnr) ? 999.0 : r->err.psnr);
-        else fprintf(f, "%10s %9s\n", "-", "-");
+                r->median_ms, r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb);
+        if (r->has_err) fprintf(f, "%10.5f %9.2f ", r->err.rel_l2, psnr_out(r->err.psnr));
+        else fprintf(f, "%10s %9s ", "-", "-");
+        fprintf(f, "%-7s ", k_motion_names[r->motion]);
+        if (r->has_err) fprintf(f, "%12.5f ", r->rel_l2_first);
+        else fprintf(f, "%12s ", "-");
+        fprintf(f, "%10.1f  %s%s%s\n", r->spp_equiv, r->scene, r->params[0] ? " " : "", r->params);
     }
 }
 
-static bool write_csv(const char *path, const row *rows, int n, double ref_ms, const char *scene, lu_error *err) {
+static bool write_csv(const char *path, const row *rows, int n, double gsps, lu_error *err) {
     lu_atomic_file af;
     if (lu_atomic_open(&af, path, err) != LU_OK) return false;
     FILE *f = af.fp;
     fprintf(f, "scene,method,backend,prepare_ms,frame_ms_median,frame_ms_min,frame_ms_max,frames,speedup_vs_reference,"
-               "peak_mb,rel_l2,rel_l1,rmse,psnr\n");
+               "peak_mb,rel_l2,rel_l1,rmse,psnr,motion,params,rel_l2_first,rel_l2_last,rel_l2_last_vs_first,spp_equiv,"
+               "yardstick_gsps,load_avg,width,height,threads\n");
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
-        fprintf(f, "%s,%s,%s,%.3f,%.3f,%.3f,%.3f,%d,%.4f,%.1f,", scene, r->method, lu_backend_name(r->backend),
-                r->prepare_ms, r->median_ms, r->min_ms, r->max_ms, r->frames, ref_ms > 0 ? ref_ms / r->median_ms : 0.0,
-                r->peak_mb);
+        fprintf(f, "%s,%s,%s,%.3f,%.3f,%.3f,%.3f,%d,%.4f,%.1f,", r->scene, r->method, lu_backend_name(r->backend),
+                r->prepare_ms, r->median_ms, r->min_ms, r->max_ms, r->frames,
+                r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb);
         if (r->has_err)
-            fprintf(f, "%.6g,%.6g,%.6g,%.4f\n", r->err.rel_l2, r->err.rel_l1, r->err.rmse,
-                    isinf(r->err.psnr) ? 999.0 : r->err.psnr);
-        else fprintf(f, ",,,\n");
+            fprintf(f, "%.6g,%.6g,%.6g,%.4f,", r->err.rel_l2, r->err.rel_l1, r->err.rmse, psnr_out(r->err.psnr));
+        else fprintf(f, ",,,,");
+        /* Sweep labels separate assignments with spaces, so no field holds a comma. */
+        fprintf(f, "%s,%s,", k_motion_names[r->motion], r->params);
+        if (r->has_err) fprintf(f, "%.6g,%.6g,", r->rel_l2_first, r->rel_l2_last);
+        else fprintf(f, ",,");
+        fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d\n", r->last_vs_first, r->spp_equiv, gsps, r->load_avg, r->width,
+                r->height, lu_thread_count());
     }
     return lu_atomic_commit(&af, err) == LU_OK;
 }
 
-static bool write_json(const char *path, const row *rows, int n, double ref_ms, const char *scene, int w, int h,
-                       lu_error *err) {
+static void json_string(FILE *f, const char *s) {
+    fputc('"', f);
+    for (; *s; s++) {
+        if (*s == '"' || *s == '\\') fputc('\\', f);
+        if ((unsigned char)*s < 0x20) fprintf(f, "\\u%04x", (unsigned char)*s);
+        else fputc(*s, f);
+    }
+    fputc('"', f);
+}
+
+static bool write_json(const char *path, const row *rows, int n, double gsps, double gsps_end, int ys_threads,
+                       const char *scene0, lu_error *err) {
     lu_atomic_file af;
     if (lu_atomic_open(&af, path, err) != LU_OK) return false;
     FILE *f = af.fp;
-    fprintf(f, "{\"scene\": \"%s\", \"width\": %d, \"height\": %d, \"threads\": %d, \"rows\": [\n", scene, w, h,
-            lu_thread_count());
+    fprintf(f, "{\"scene\": ");
+    json_string(f, scene0);
+    fprintf(f, ", \"width\": %d, \"height\": %d, \"threads\": %d, \"yardstick_gsps\": %.4f, \"yardstick_gsps_end\": %.4f, "
+               "\"yardstick_threads\": %d, \"load_avg\": %.2f, \"rows\": [\n",
+            n ? rows[0].width : 0, n ? rows[0].height : 0, lu_thread_count(), gsps, gsps_end, ys_threads,
+            load_avg_1min());
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
+        fprintf(f, "  {\"scene\": ");
+        json_string(f, r->scene);
         fprintf(f,
-                "  {\"method\": \"%s\", \"backend\": \"%s\", \"prepare_ms\": %.3f, \"frame_ms\": %.3f, \"frames\": %d, "
-                "\"speedup_vs_reference\": %.4f, \"peak_mb\": %.1f",
-                r->method, lu_backend_name(r->backend), r->prepare_ms, r->median_ms, r->frames,
-                ref_ms > 0 ? ref_ms / r->median_ms : 0.0, r->peak_mb);
+                ", \"width\": %d, \"height\": %d, \"method\": \"%s\", \"backend\": \"%s\", \"motion\": \"%s\", "
+                "\"params\": ",
+                r->width, r->height, r->method, lu_backend_name(r->backend), k_motion_names[r->motion]);
+        json_string(f, r->params);
+        fprintf(f,
+                ", \"prepare_ms\": %.3f, \"frame_ms\": %.3f, \"frames\": %d, \"speedup_vs_reference\": %.4f, "
+                "\"peak_mb\": %.1f",
+                r->prepare_ms, r->median_ms, r->frames, r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb);
         if (r->has_err)
-            fprintf(f, ", \"rel_l2\": %.6g, \"rel_l1\": %.6g, \"psnr\": %.4f", r->err.rel_l2, r->err.rel_l1,
-                    isinf(r->err.psnr) ? 999.0 : r->err.psnr);
-        fprintf(f, "}%s\n", i + 1 < n ? "," : "");
+            fprintf(f, ", \"rel_l2\": %.6g, \"rel_l1\": %.6g, \"psnr\": %.4f, \"rel_l2_first\": %.6g, \"rel_l2_last\": %.6g",
+                    r->err.rel_l2, r->err.rel_l1, psnr_out(r->err.psnr), r->rel_l2_first, r->rel_l2_last);
+        fprintf(f, ", \"rel_l2_last_vs_first\": %.6g, \"spp_equiv\": %.2f, \"yardstick_gsps\": %.4f, \"load_avg\": %.2f}%s\n",
+                r->last_vs_first, r->spp_equiv, gsps, r->load_avg, i + 1 < n ? "," : "");
     }
     fprintf(f, "]}\n");
     return lu_atomic_commit(&af, err) == LU_OK;
 }
 
-#define MAX_ROWS 64
+/* Base name of a scene path without ".json", for image names. */
+static void scene_stem(const char *path, char *out, size_t n) {
+    const char *s = strrchr(path, '/');
+    s = s ? s + 1 : path;
+    snprintf(out, n, "%s", s);
+    char *dot = strrchr(out, '.');
+    if (dot && strcmp(dot, ".json") == 0) *dot = '\0';
+}
 
-int lu_cmd_bench(int argc, char **argv) {
-    const char *scene_path = NULL, *csv = NULL, *json = NULL, *ref_path = NULL, *img_dir = NULL;
-    char methods_buf[512] = "reference", backends_buf[64] = "cpu";
-    int frames = 5, warmup = 1, width = 0, height = 0;
-    lu_kvlist settings = {0};
+/* ---- the command --------------------------------------------------------- */
+
+typedef struct bench_opts {
+    const char *scenes[MAX_SCENES];
+    int nscenes;
+    char *methods[MAX_METHODS];
+    int nmethods;
+    lu_backend backends[2];
+    int nbackends;
+    bool motions[MOTION_COUNT];
+    int frames, warmup, width, height;   /* frames 0: the default per motion */
+    lu_kvlist settings;
+    sweep sweeps[MAX_SWEEPS];
+    int nsweeps;
+    const char *csv, *json, *ref_path, *img_dir;
+    bool no_truth;
+} bench_opts;
+
+static int parse_motions(const char *arg, bool *motions) {
+    char buf[256];
+    snprintf(buf, sizeof buf, "%s", arg);
+    char *items[16];
+    int n = split_list(buf, items, 16);
+    if (n == 0) return lu_cli_usage("bench", "--motion takes still, orbit, light or medium");
+    for (int i = 0; i < n; i++) {
+        int k = 0;
+        while (k < MOTION_COUNT && strcmp(items[i], k_motion_names[k]) != 0) k++;
+        if (k == MOTION_COUNT)
+            return lu_cli_usage("bench", "--motion: unknown motion \"%s\" (still, orbit, light, medium)", items[i]);
+        motions[k] = true;
+    }
+    return LU_EXIT_OK;
+}
+
+static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, size_t mb_size, char *backends_buf,
+                      size_t bb_size) {
     lu_error err = {0};
+    bool methods_given = false, motion_given = false;
     int rc = LU_EXIT_OK;
     for (int i = 1; i < argc && rc == LU_EXIT_OK; i++) {
         const char *a = argv[i];
@@ -157,119 +559,283 @@ int lu_cmd_bench(int argc, char **argv) {
         char *end = NULL;
         if (lu_cli_is_help(a)) {
             usage();
-            lu_kv_free(&settings);
-            return LU_EXIT_OK;
+            return -1;
         } else if (strcmp(a, "--methods") == 0 && has_next) {
-            snprintf(methods_buf, sizeof methods_buf, "%s", argv[++i]);
+            snprintf(methods_buf, mb_size, "%s", argv[++i]);
+            methods_given = true;
         } else if (strcmp(a, "--backends") == 0 && has_next) {
-            snprintf(backends_buf, sizeof backends_buf, "%s", argv[++i]);
+            snprintf(backends_buf, bb_size, "%s", argv[++i]);
         } else if (strcmp(a, "--frames") == 0 && has_next) {
-            frames = (int)strtol(argv[++i], &end, 10);
-            if (*end || frames < 1 || frames > 10000) rc = lu_cli_usage("bench", "--frames takes 1..10000");
+            o->frames = (int)strtol(argv[++i], &end, 10);
+            if (*end || o->frames < 1 || o->frames > 10000) rc = lu_cli_usage("bench", "--frames takes 1..10000");
         } else if (strcmp(a, "--warmup") == 0 && has_next) {
-            warmup = (int)strtol(argv[++i], &end, 10);
-            if (*end || warmup < 0 || warmup > 10000) rc = lu_cli_usage("bench", "--warmup takes 0..10000");
+            o->warmup = (int)strtol(argv[++i], &end, 10);
+            if (*end || o->warmup < 0 || o->warmup > 10000) rc = lu_cli_usage("bench", "--warmup takes 0..10000");
         } else if (strcmp(a, "--size") == 0 && has_next) {
-            if (!lu_cli_parse_size(argv[++i], &width, &height)) rc = lu_cli_usage("bench", "--size takes WxH");
+            if (!lu_cli_parse_size(argv[++i], &o->width, &o->height)) rc = lu_cli_usage("bench", "--size takes WxH");
         } else if (strcmp(a, "--set") == 0 && has_next) {
-            if (lu_kv_parse_assignment(&settings, argv[++i], &err) != LU_OK) rc = lu_cli_error("bench", &err);
+            if (lu_kv_parse_assignment(&o->settings, argv[++i], &err) != LU_OK) rc = lu_cli_error("bench", &err);
+        } else if (strcmp(a, "--sweep") == 0 && has_next) {
+            if (o->nsweeps == MAX_SWEEPS) rc = lu_cli_usage("bench", "at most %d --sweep options", MAX_SWEEPS);
+            else {
+                rc = parse_sweep(argv[++i], &o->sweeps[o->nsweeps], o->sweeps, o->nsweeps);
+                o->nsweeps++; /* counted even on failure, so its text is freed */
+            }
+        } else if (strcmp(a, "--motion") == 0 && has_next) {
+            rc = parse_motions(argv[++i], o->motions);
+            motion_given = true;
         } else if (strcmp(a, "--reference") == 0 && has_next) {
-            ref_path = argv[++i];
+            o->ref_path = argv[++i];
+        } else if (strcmp(a, "--no-truth") == 0) {
+            o->no_truth = true;
         } else if (strcmp(a, "--save-images") == 0 && has_next) {
-            img_dir = argv[++i];
+            o->img_dir = argv[++i];
         } else if (strcmp(a, "--csv") == 0 && has_next) {
-            csv = argv[++i];
+            o->csv = argv[++i];
         } else if (strcmp(a, "--json") == 0 && has_next) {
-            json = argv[++i];
+            o->json = argv[++i];
         } else if (a[0] == '-') {
             rc = lu_cli_usage("bench", "unknown or incomplete option \"%s\"", a);
-        } else if (!scene_path) {
-            scene_path = a;
+        } else if (o->nscenes == MAX_SCENES) {
+            rc = lu_cli_usage("bench", "at most %d scenes", MAX_SCENES);
         } else {
-            rc = lu_cli_usage("bench", "unexpected argument \"%s\"", a);
+            o->scenes[o->nscenes++] = a;
         }
     }
-    if (rc == LU_EXIT_OK && !scene_path) rc = lu_cli_usage("bench", "missing SCENE.json");
-    char *methods[MAX_ROWS], *backend_names[2];
-    int nm = split_list(methods_buf, methods, MAX_ROWS);
-    int nb = split_list(backends_buf, backend_names, 2);
-    lu_backend backends[2];
-    for (int i = 0; i < nm && rc == LU_EXIT_OK; i++)
-        if (!lu_method_find(methods[i])) rc = lu_cli_usage("bench", "no method named \"%s\"", methods[i]);
-    for (int i = 0; i < nb && rc == LU_EXIT_OK; i++)
-        if (!lu_cli_parse_backend(backend_names[i], &backends[i])) rc = lu_cli_usage("bench", "--backends takes cpu,gpu");
-    if (rc == LU_EXIT_OK && lu_settings_validate(&settings, &err) != LU_OK) rc = lu_cli_error("bench", &err);
-    if (rc == LU_EXIT_OK && img_dir) mkdir(img_dir, 0755);
-    lu_scene scene;
-    if (rc == LU_EXIT_OK) rc = lu_cli_load_scene("bench", scene_path, width, height, &scene);
-    if (rc != LU_EXIT_OK) {
-        lu_kv_free(&settings);
-        return rc;
+    if (rc != LU_EXIT_OK) return rc;
+    if (o->nscenes == 0) return lu_cli_usage("bench", "missing SCENE.json");
+    if (!motion_given) o->motions[MOTION_STILL] = true;
+    if (!methods_given && o->nsweeps > 0) {
+        /* The swept methods, in the order first named. */
+        methods_buf[0] = '\0';
+        for (int i = 0; i < o->nsweeps; i++) {
+            bool seen = false;
+            for (int j = 0; j < i; j++) seen = seen || strcmp(o->sweeps[j].method, o->sweeps[i].method) == 0;
+            if (seen) continue;
+            size_t len = strlen(methods_buf);
+            snprintf(methods_buf + len, mb_size - len, "%s%s", len ? "," : "", o->sweeps[i].method);
+        }
     }
+    o->nmethods = split_list(methods_buf, o->methods, MAX_METHODS);
+    char *bnames[3];
+    o->nbackends = split_list(backends_buf, bnames, 3);
+    if (o->nmethods == 0) return lu_cli_usage("bench", "--methods is empty");
+    for (int i = 0; i < o->nmethods; i++)
+        if (!lu_method_find(o->methods[i])) return lu_cli_usage("bench", "no method named \"%s\"", o->methods[i]);
+    if (o->nbackends == 0 || o->nbackends > 2) return lu_cli_usage("bench", "--backends takes cpu,gpu");
+    for (int i = 0; i < o->nbackends; i++)
+        if (!lu_cli_parse_backend(bnames[i], &o->backends[i])) return lu_cli_usage("bench", "--backends takes cpu,gpu");
+    for (int i = 0; i < o->nsweeps; i++) {
+        bool listed = false;
+        for (int j = 0; j < o->nmethods; j++) listed = listed || strcmp(o->methods[j], o->sweeps[i].method) == 0;
+        if (!listed)
+            return lu_cli_usage("bench", "--sweep %s: method %s is not among --methods", o->sweeps[i].key,
+                                o->sweeps[i].method);
+    }
+    long rows = 0;
+    for (int j = 0; j < o->nmethods; j++) rows += combo_count(o->sweeps, o->nsweeps, o->methods[j]);
+    int nmot = 0;
+    for (int k = 0; k < MOTION_COUNT; k++) nmot += o->motions[k];
+    rows *= (long)o->nscenes * o->nbackends * nmot;
+    if (rows > MAX_ROWS) return lu_cli_usage("bench", "%ld rows requested; at most %d", rows, MAX_ROWS);
+    if (o->ref_path && o->no_truth) return lu_cli_usage("bench", "--reference and --no-truth exclude each other");
+    if (o->ref_path && (o->nscenes > 1 || nmot > 1 || !o->motions[MOTION_STILL]))
+        return lu_cli_usage("bench", "--reference takes one SCENE and --motion still only");
+    for (int i = 0; i < o->nscenes; i++) {
+        struct stat st;
+        if (stat(o->scenes[i], &st) != 0 || !S_ISREG(st.st_mode)) {
+            lu_error e;
+            lu_fail(&e, LU_ERR_IO, "%s: no such scene file", o->scenes[i]);
+            return lu_cli_error("bench", &e);
+        }
+    }
+    if (lu_settings_validate(&o->settings, &err) != LU_OK) return lu_cli_error("bench", &err);
+    return LU_EXIT_OK;
+}
 
-    /* The truth: a given image, or the reference rendered once at its settings. */
-    lu_image truth = {0};
-    row rows[MAX_ROWS], ref_row;
-    int nrows = 0;
-    double ref_ms = 0.0;
+/* One scene: every motion, method, backend and sweep combination. Appends
+ * to rows. */
+static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *scene, double gsps, row *rows,
+                             int *nrows, lu_error *err) {
+    char stem[256];
+    scene_stem(path, stem, sizeof stem);
+    const int pixels = scene->camera.width * scene->camera.height;
     lu_result res = LU_OK;
-    if (ref_path) {
-        res = lu_image_load(ref_path, &truth, &err);
-        if (res == LU_OK && (truth.width != scene.camera.width || truth.height != scene.camera.height))
-            res = lu_fail(&err, LU_ERR_INVALID_ARG, "%s is %dx%d but the scene renders %dx%d", ref_path, truth.width,
-                          truth.height, scene.camera.width, scene.camera.height);
-    } else {
-        fprintf(stderr, "lucent bench: rendering the reference (the truth) ...\n");
-        res = bench_one(&scene, "reference", LU_BACKEND_CPU, &settings, 0, 1, &ref_row, &truth, &err);
-        ref_ms = ref_row.median_ms;
-    }
-    bool ref_row_used = false;
-    for (int i = 0; i < nm && res == LU_OK; i++) {
-        for (int b = 0; b < nb && res == LU_OK && nrows < MAX_ROWS; b++) {
-            const lu_method *m = lu_method_find(methods[i]);
-            if (!(m->backends & backends[b])) {
-                fprintf(stderr, "lucent bench: %s has no %s backend, skipped\n", m->name, lu_backend_name(backends[b]));
-                continue;
-            }
-            bool is_ref = strcmp(m->name, "reference") == 0;
-            lu_image img = {0};
-            row *r = &rows[nrows];
-            if (is_ref && backends[b] == LU_BACKEND_CPU && !ref_path && !ref_row_used) {
-                ref_row_used = true; /* already rendered as the truth */
-                *r = ref_row;
-                r->has_err = lu_image_compare(&truth, &truth, &r->err, &err) == LU_OK;
-                nrows++;
-                continue;
-            }
-            fprintf(stderr, "lucent bench: %s on %s ...\n", m->name, lu_backend_name(backends[b]));
-            res = bench_one(&scene, m->name, backends[b], &settings, is_ref ? 0 : warmup, is_ref ? 1 : frames, r, &img,
-                            &err);
-            if (res == LU_OK) r->has_err = lu_image_compare(&img, &truth, &r->err, &err) == LU_OK;
-            if (res == LU_OK && img_dir) {
-                char path[1024];
-                snprintf(path, sizeof path, "%s/%s-%s.exr", img_dir, m->name, lu_backend_name(backends[b]));
-                res = lu_image_save(&img, path, NULL, &err);
-            }
-            if (res == LU_OK) nrows++;
-            lu_image_destroy(&img);
+    for (int mk = 0; mk < MOTION_COUNT && res == LU_OK; mk++) {
+        if (!o->motions[mk]) continue;
+        motion mo = (motion)mk;
+        int frames = o->frames ? o->frames : (mo == MOTION_STILL ? 5 : 8);
+        motion_state ms;
+        bool available;
+        res = motion_begin(&ms, mo, scene, frames, &available, err);
+        if (res == LU_OK && !available) {
+            fprintf(stderr, "lucent bench: %s has no %s to move; --motion %s skipped\n", path,
+                    mo == MOTION_LIGHT ? "point, spot or directional light" : "grid medium", k_motion_names[mo]);
+            motion_end(&ms, err);
+            continue;
         }
+        /* Truths for the first and last timed state (still: one state). */
+        lu_image truth_first = {0}, truth_last = {0};
+        double truth_first_ms = 0.0, truth_last_ms = 0.0;
+        int first_step = mo == MOTION_STILL ? 0 : 1, last_step = mo == MOTION_STILL ? 0 : frames;
+        if (res == LU_OK && o->ref_path) {
+            res = lu_image_load(o->ref_path, &truth_first, err);
+            if (res == LU_OK && (truth_first.width != scene->camera.width || truth_first.height != scene->camera.height))
+                res = lu_fail(err, LU_ERR_INVALID_ARG, "%s is %dx%d but the scene renders %dx%d", o->ref_path,
+                              truth_first.width, truth_first.height, scene->camera.width, scene->camera.height);
+        } else if (res == LU_OK && !o->no_truth) {
+            fprintf(stderr, "lucent bench: %s: rendering the reference (the truth), %s ...\n", path,
+                    k_motion_names[mo]);
+            res = render_truth(&ms, first_step, &o->settings, &truth_first, &truth_first_ms, err);
+        }
+        if (res == LU_OK && last_step != first_step && !o->no_truth)
+            res = render_truth(&ms, last_step, &o->settings, &truth_last, &truth_last_ms, err);
+        const lu_image *tlast = last_step != first_step ? &truth_last : &truth_first;
+        if (res == LU_OK && o->img_dir && !o->no_truth) {
+            char p[1400];
+            if (mo == MOTION_STILL) {
+                snprintf(p, sizeof p, "%s/%s%struth.exr", o->img_dir, o->nscenes > 1 ? stem : "",
+                         o->nscenes > 1 ? "-" : "");
+                res = lu_image_save(&truth_first, p, NULL, err);
+            } else {
+                snprintf(p, sizeof p, "%s/%s%struth-%s-first.exr", o->img_dir, o->nscenes > 1 ? stem : "",
+                         o->nscenes > 1 ? "-" : "", k_motion_names[mo]);
+                res = lu_image_save(&truth_first, p, NULL, err);
+                snprintf(p, sizeof p, "%s/%s%struth-%s-last.exr", o->img_dir, o->nscenes > 1 ? stem : "",
+                         o->nscenes > 1 ? "-" : "", k_motion_names[mo]);
+                if (res == LU_OK) res = lu_image_save(tlast, p, NULL, err);
+            }
+        }
+        bool truth_row_used = false;
+        for (int mi = 0; mi < o->nmethods && res == LU_OK; mi++) {
+            const lu_method *m = lu_method_find(o->methods[mi]);
+            int ncombo = combo_count(o->sweeps, o->nsweeps, m->name);
+            bool is_ref = strcmp(m->name, "reference") == 0;
+            for (int b = 0; b < o->nbackends && res == LU_OK; b++) {
+                if (!(m->backends & o->backends[b])) {
+                    fprintf(stderr, "lucent bench: %s has no %s backend, skipped\n", m->name,
+                            lu_backend_name(o->backends[b]));
+                    continue;
+                }
+                for (int c = 0; c < ncombo && res == LU_OK; c++) {
+                    row *r = &rows[*nrows];
+                    memset(r, 0, sizeof *r);
+                    r->scene = path;
+                    r->width = scene->camera.width;
+                    r->height = scene->camera.height;
+                    r->motion = mo;
+                    r->ref_ms = truth_first_ms;
+                    lu_kvlist settings;
+                    res = combo_settings(&o->settings, o->sweeps, o->nsweeps, m->name, c, &settings, r->params,
+                                         sizeof r->params, err);
+                    lu_image first = {0}, last = {0};
+                    bool reuse = is_ref && o->backends[b] == LU_BACKEND_CPU && !o->ref_path && !o->no_truth && !r->params[0] &&
+                                 !truth_row_used;
+                    if (res == LU_OK && reuse) {
+                        /* The truth of the first state is this row's one frame. */
+                        truth_row_used = true;
+                        r->method = m->name;
+                        r->backend = LU_BACKEND_CPU;
+                        r->frames = 1;
+                        r->median_ms = r->min_ms = r->max_ms = truth_first_ms;
+                        res = image_copy(&truth_first, &first, err);
+                        if (res == LU_OK) res = image_copy(&truth_first, &last, err);
+                    } else if (res == LU_OK) {
+                        fprintf(stderr, "lucent bench: %s: %s on %s, %s%s%s ...\n", path, m->name,
+                                lu_backend_name(o->backends[b]), k_motion_names[mo], r->params[0] ? ", " : "",
+                                r->params);
+                        res = bench_one(&ms, m->name, o->backends[b], &settings, is_ref ? 0 : o->warmup,
+                                        is_ref ? 1 : frames, r, &first, &last, err);
+                    }
+                    lu_kv_free(&settings);
+                    /* The reference renders one frame: its last state is the first. */
+                    const lu_image *tl = r->frames == frames ? tlast : &truth_first;
+                    lu_metrics mf, ml, d;
+                    if (res == LU_OK && !o->no_truth) {
+                        res = lu_image_compare(&first, &truth_first, &mf, err);
+                        if (res == LU_OK) res = lu_image_compare(&last, tl, &ml, err);
+                        if (res == LU_OK) {
+                            r->err = ml;
+                            r->has_err = true;
+                            r->rel_l2_first = mf.rel_l2;
+                            r->rel_l2_last = ml.rel_l2;
+                        }
+                    }
+                    if (res == LU_OK) res = lu_image_compare(&last, &first, &d, err);
+                    if (res == LU_OK) r->last_vs_first = d.rel_l2;
+                    if (res == LU_OK) {
+                        r->spp_equiv = r->median_ms * 1e-3 * gsps * 1e9 / (double)pixels;
+                        r->load_avg = load_avg_1min();
+                    }
+                    if (res == LU_OK && o->img_dir) {
+                        char p[1400], tail[64] = "";
+                        if (ncombo > 1) snprintf(tail, sizeof tail, "-p%d", c);
+                        snprintf(p, sizeof p, "%s/%s%s%s-%s%s%s%s.exr", o->img_dir, o->nscenes > 1 ? stem : "",
+                                 o->nscenes > 1 ? "-" : "", m->name, lu_backend_name(o->backends[b]),
+                                 mo == MOTION_STILL ? "" : "-", mo == MOTION_STILL ? "" : k_motion_names[mo], tail);
+                        res = lu_image_save(&last, p, NULL, err);
+                    }
+                    lu_image_destroy(&first);
+                    lu_image_destroy(&last);
+                    if (res == LU_OK) (*nrows)++;
+                }
+            }
+        }
+        lu_image_destroy(&truth_first);
+        lu_image_destroy(&truth_last);
+        lu_result r2 = motion_end(&ms, err);
+        if (res == LU_OK) res = r2;
     }
-    if (res == LU_OK && img_dir) {
-        char path[1024];
-        snprintf(path, sizeof path, "%s/truth.exr", img_dir);
-        res = lu_image_save(&truth, path, NULL, &err);
+    return res;
+}
+
+int lu_cmd_bench(int argc, char **argv) {
+    bench_opts o;
+    memset(&o, 0, sizeof o);
+    o.warmup = 1;
+    char methods_buf[1024] = "reference", backends_buf[64] = "cpu";
+    int rc = parse_args(argc, argv, &o, methods_buf, sizeof methods_buf, backends_buf, sizeof backends_buf);
+    row *rows = NULL;
+    lu_error err = {0};
+    if (rc == LU_EXIT_OK) {
+        rows = calloc(MAX_ROWS, sizeof *rows);
+        if (!rows) rc = lu_cli_error("bench", &(lu_error){LU_ERR_NOMEM, "out of memory"});
     }
-    if (res != LU_OK) {
-        rc = lu_cli_error("bench", &err);
-    } else {
-        printf("scene %s, %dx%d, %d threads\n", scene_path, scene.camera.width, scene.camera.height, lu_thread_count());
-        print_table(stdout, rows, nrows, ref_ms);
-        if (csv && !write_csv(csv, rows, nrows, ref_ms, scene_path, &err)) rc = lu_cli_error("bench", &err);
-        if (json && !write_json(json, rows, nrows, ref_ms, scene_path, scene.camera.width, scene.camera.height, &err))
+    if (rc == LU_EXIT_OK && o.img_dir) mkdir(o.img_dir, 0755);
+    int nrows = 0, ys_threads = 0;
+    double gsps = 0.0, load0 = 0.0;
+    if (rc == LU_EXIT_OK) {
+        load0 = load_avg_1min();
+        gsps = lu_yardstick_gsps(5, &ys_threads);
+        if (gsps <= 0.0) rc = lu_cli_error("bench", &(lu_error){LU_ERR_NOMEM, "out of memory for the yardstick"});
+    }
+    for (int s = 0; s < o.nscenes && rc == LU_EXIT_OK; s++) {
+        lu_scene scene;
+        rc = lu_cli_load_scene("bench", o.scenes[s], o.width, o.height, &scene);
+        if (rc != LU_EXIT_OK) break;
+        if (bench_scene(&o, o.scenes[s], &scene, gsps, rows, &nrows, &err) != LU_OK) rc = lu_cli_error("bench", &err);
+        lu_scene_destroy(&scene);
+    }
+    if (rc == LU_EXIT_OK) {
+        /* Timed again at the end: the two differ when the machine's load
+         * changed during the run, and then so does the meaning of spp_eq. */
+        double gsps_end = lu_yardstick_gsps(5, &ys_threads);
+        double l[3] = {0, 0, 0};
+        getloadavg(l, 3);
+        if (o.nscenes == 1)
+            printf("scene %s, %dx%d, %d threads\n", o.scenes[0], nrows ? rows[0].width : 0, nrows ? rows[0].height : 0,
+                   lu_thread_count());
+        else printf("%d scenes, %d threads\n", o.nscenes, lu_thread_count());
+        printf("yardstick %.4f G samples/s (%.4f at the end, %d threads); load average %.2f at the start, "
+               "%.2f %.2f %.2f at the end\n",
+               gsps, gsps_end, ys_threads, load0, l[0], l[1], l[2]);
+        print_table(stdout, rows, nrows);
+        if (o.csv && !write_csv(o.csv, rows, nrows, gsps, &err)) rc = lu_cli_error("bench", &err);
+        if (o.json && !write_json(o.json, rows, nrows, gsps, gsps_end, ys_threads, o.scenes[0], &err))
             rc = lu_cli_error("bench", &err);
     }
-    lu_image_destroy(&truth);
-    lu_scene_destroy(&scene);
-    lu_kv_free(&settings);
-    return rc;
+    free(rows);
+    for (int i = 0; i < o.nsweeps; i++) free(o.sweeps[i].text);
+    lu_kv_free(&o.settings);
+    return rc < 0 ? LU_EXIT_OK : rc;
 }

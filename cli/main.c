@@ -12,7 +12,7 @@ static const char k_usage[] =
     "commands:\n"
     "  render SCENE.json --method M -o OUT.{png,exr,pfm}   render a scene\n"
     "  compare A B [-o diff.png]                            error metrics of A against reference B\n"
-    "  bench SCENE.json --methods a,b,...                   time methods, error against the reference\n"
+    "  bench SCENE.json... --methods a,b,...                time methods (sweeps, motions), error vs reference\n"
     "  view SCENE.json [--method M]                         interactive viewer (window)\n"
     "  info FILE                                            summarise a scene, mesh, grid or image\n"
     "  methods                                              list methods and their parameters\n"

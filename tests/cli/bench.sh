@@ -1,15 +1,24 @@
 #!/usr/bin/env bash
-# bench prints its table for the reference and writes CSV and JSON.
-# Args: LUCENT_BINARY SOURCE_DIR
+# bench prints its table and writes CSV and JSON; the rel-L2 it reports is
+# that of the image it saved against the truth it saved, as `lucent compare`
+# computes it from the files. Args: LUCENT_BINARY SOURCE_DIR
 set -eu
 lucent=$1
 src=$2
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-"$lucent" bench "$src/scenes/spot_shaft.json" --methods reference --size 24x18 \
-  --csv "$tmp/b.csv" --json "$tmp/b.json" >"$tmp/table.txt" 2>/dev/null
+"$lucent" bench "$src/scenes/spot_shaft.json" --methods reference,raymarch --size 24x18 --frames 2 \
+  --csv "$tmp/b.csv" --json "$tmp/b.json" --save-images "$tmp/img" >"$tmp/table.txt" 2>/dev/null
 grep -q "^reference *cpu" "$tmp/table.txt" || { echo "FAIL: no reference row"; cat "$tmp/table.txt"; exit 1; }
-# The reference against itself: rel_l2 exactly 0.
-awk -F, 'NR == 2 { exit !($2 == "reference" && $11 == 0) }' "$tmp/b.csv" || { echo "FAIL: csv"; cat "$tmp/b.csv"; exit 1; }
+grep -q "^raymarch *cpu" "$tmp/table.txt" || { echo "FAIL: no raymarch row"; cat "$tmp/table.txt"; exit 1; }
+# The first 14 columns keep their names and order (scripts read them by position).
+head -1 "$tmp/b.csv" | grep -q "^scene,method,backend,prepare_ms,frame_ms_median,frame_ms_min,frame_ms_max,frames,speedup_vs_reference,peak_mb,rel_l2,rel_l1,rmse,psnr," ||
+  { echo "FAIL: csv header $(head -1 "$tmp/b.csv")"; exit 1; }
+rel=$(awk -F, '$2 == "raymarch" { print $11 }' "$tmp/b.csv")
+ref=$("$lucent" compare "$tmp/img/raymarch-cpu.exr" "$tmp/img/truth.exr" | awk '/^rel_l2/ {print $2}')
+# The CSV prints 6 significant digits, compare 6 too.
+awk -v a="$rel" -v b="$ref" 'BEGIN { d = a - b; if (d < 0) d = -d; exit !(b > 0 && d <= 1e-5 * b) }' ||
+  { echo "FAIL: bench rel_l2 $rel, compare $ref"; cat "$tmp/b.csv"; exit 1; }
 grep -q '"method": "reference"' "$tmp/b.json" || { echo "FAIL: json"; exit 1; }
+grep -q '"motion": "still"' "$tmp/b.json" || { echo "FAIL: json has no motion"; exit 1; }
 echo ok
