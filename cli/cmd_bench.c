@@ -37,6 +37,8 @@ static void usage(void) {
            "  --reference FILE    use this image as the truth instead of rendering it (one scene,\n"
            "                      still only)\n"
            "  --no-truth          render no truth: timings only, the error columns stay empty\n"
+           "  --no-yardstick      skip the yardstick (spp_eq stays 0): for a binary carried to a\n"
+           "                      machine whose processor may lack this build's -march=native set\n"
            "  --save-images DIR   write each row's last frame as DIR/<method>-<backend>.exr (with\n"
            "                      the scene, motion and sweep index in the name when there are several)\n"
            "  --csv FILE          also write the table as CSV\n"
@@ -529,7 +531,7 @@ typedef struct bench_opts {
     sweep sweeps[MAX_SWEEPS];
     int nsweeps;
     const char *csv, *json, *ref_path, *img_dir;
-    bool no_truth;
+    bool no_truth, no_yardstick;
 } bench_opts;
 
 static int parse_motions(const char *arg, bool *motions) {
@@ -588,6 +590,8 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
             o->ref_path = argv[++i];
         } else if (strcmp(a, "--no-truth") == 0) {
             o->no_truth = true;
+        } else if (strcmp(a, "--no-yardstick") == 0) {
+            o->no_yardstick = true;
         } else if (strcmp(a, "--save-images") == 0 && has_next) {
             o->img_dir = argv[++i];
         } else if (strcmp(a, "--csv") == 0 && has_next) {
@@ -806,8 +810,8 @@ int lu_cmd_bench(int argc, char **argv) {
     double gsps = 0.0, load0 = 0.0;
     if (rc == LU_EXIT_OK) {
         load0 = load_avg_1min();
-        gsps = lu_yardstick_gsps(5, &ys_threads);
-        if (gsps <= 0.0) rc = lu_cli_error("bench", &(lu_error){LU_ERR_NOMEM, "out of memory for the yardstick"});
+        gsps = o.no_yardstick ? 0.0 : lu_yardstick_gsps(5, &ys_threads);
+        if (gsps <= 0.0 && !o.no_yardstick) rc = lu_cli_error("bench", &(lu_error){LU_ERR_NOMEM, "out of memory for the yardstick"});
     }
     for (int s = 0; s < o.nscenes && rc == LU_EXIT_OK; s++) {
         lu_scene scene;
@@ -819,7 +823,7 @@ int lu_cmd_bench(int argc, char **argv) {
     if (rc == LU_EXIT_OK) {
         /* Timed again at the end: the two differ when the machine's load
          * changed during the run, and then so does the meaning of spp_eq. */
-        double gsps_end = lu_yardstick_gsps(5, &ys_threads);
+        double gsps_end = o.no_yardstick ? 0.0 : lu_yardstick_gsps(5, &ys_threads);
         double l[3] = {0, 0, 0};
         getloadavg(l, 3);
         if (o.nscenes == 1)
