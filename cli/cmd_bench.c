@@ -37,6 +37,9 @@ static void usage(void) {
            "  --reference FILE    use this image as the truth instead of rendering it (one scene,\n"
            "                      still only)\n"
            "  --no-truth          render no truth: timings only, the error columns stay empty\n"
+           "  --tracking on|off|both  off: every frame rebuilds everything (what a frame costs\n"
+           "                      without change tracking); both: each row twice, the second with\n"
+           "                      params \"tracking=off\" (default on)\n"
            "  --no-yardstick      skip the yardstick (spp_eq stays 0): for a binary carried to a\n"
            "                      machine whose processor may lack this build's -march=native set\n"
            "  --save-images DIR   write each row's last frame as DIR/<method>-<backend>.exr (with\n"
@@ -370,7 +373,8 @@ static lu_result image_copy(const lu_image *src, lu_image *dst, lu_error *err) {
  * frame k at step k (1..frames; still: always step 0). Keeps the first and
  * the last timed frame. Leaves the scene at step 0 of the motion. */
 static lu_result bench_one(motion_state *ms, const char *method, lu_backend backend, const lu_kvlist *settings,
-                           int warmup, int frames, row *out, lu_image *first, lu_image *last, lu_error *err) {
+                           int warmup, int frames, bool untracked, row *out, lu_image *first, lu_image *last,
+                           lu_error *err) {
     out->method = method;
     out->backend = backend;
     lu_peak_rss_reset();
@@ -384,9 +388,15 @@ static lu_result bench_one(motion_state *ms, const char *method, lu_backend back
         lu_renderer_destroy(r);
         return lu_fail(err, LU_ERR_NOMEM, "out of memory");
     }
-    for (int i = 0; i < warmup && res == LU_OK; i++) res = lu_renderer_render(r, ms->scene, last, err);
+    /* untracked: every frame rebuilds everything, what frames cost without
+     * the frame stage's change tracking. */
+    for (int i = 0; i < warmup && res == LU_OK; i++) {
+        if (untracked) lu_renderer_invalidate(r, LU_CHANGE_ALL);
+        res = lu_renderer_render(r, ms->scene, last, err);
+    }
     for (int k = 1; k <= frames && res == LU_OK; k++) {
         res = motion_set(ms, ms->kind == MOTION_STILL ? 0 : k, err);
+        if (untracked) lu_renderer_invalidate(r, LU_CHANGE_ALL);
         if (res == LU_OK) res = lu_renderer_render(r, ms->scene, last, err);
         if (res == LU_OK) ms_list[k - 1] = r->last_render_ms;
         if (res == LU_OK && k == 1) res = image_copy(last, first, err);
@@ -532,6 +542,7 @@ typedef struct bench_opts {
     int nsweeps;
     const char *csv, *json, *ref_path, *img_dir;
     bool no_truth, no_yardstick;
+    unsigned tracking;         /* bit 0: rows with change tracking, bit 1: rows without */
 } bench_opts;
 
 static int parse_motions(const char *arg, bool *motions) {
@@ -592,6 +603,10 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
             o->no_truth = true;
         } else if (strcmp(a, "--no-yardstick") == 0) {
             o->no_yardstick = true;
+        } else if (strcmp(a, "--tracking") == 0 && has_next) {
+            const char *v = argv[++i];
+            o->tracking = strcmp(v, "on") == 0 ? 1u : strcmp(v, "off") == 0 ? 2u : strcmp(v, "both") == 0 ? 3u : 0u;
+            if (!o->tracking) return lu_cli_usage("bench", "--tracking \"%s\": expected on, off or both", v);
         } else if (strcmp(a, "--save-images") == 0 && has_next) {
             o->img_dir = argv[++i];
         } else if (strcmp(a, "--csv") == 0 && has_next) {
@@ -721,7 +736,14 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                             lu_backend_name(o->backends[b]));
                     continue;
                 }
-                for (int c = 0; c < ncombo && res == LU_OK; c++) {
+                for (int ct = 0; ct < 2 * ncombo && res == LU_OK; ct++) {
+                    int c = ct / 2;
+                    bool untracked = ct % 2 == 1;
+                    if (!(o->tracking & (1u << (ct % 2)))) continue;
+                    if (*nrows >= MAX_ROWS) {
+                        res = lu_fail(err, LU_ERR_LIMIT, "more than %d rows", MAX_ROWS);
+                        break;
+                    }
                     row *r = &rows[*nrows];
                     memset(r, 0, sizeof *r);
                     r->scene = path;
@@ -732,6 +754,10 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     lu_kvlist settings;
                     res = combo_settings(&o->settings, o->sweeps, o->nsweeps, m->name, c, &settings, r->params,
                                          sizeof r->params, err);
+                    if (untracked) {
+                        size_t n = strlen(r->params);
+                        snprintf(r->params + n, sizeof r->params - n, "%stracking=off", n ? " " : "");
+                    }
                     lu_image first = {0}, last = {0};
                     bool reuse = is_ref && o->backends[b] == LU_BACKEND_CPU && !o->ref_path && !o->no_truth && !r->params[0] &&
                                  !truth_row_used;
@@ -749,7 +775,7 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                                 lu_backend_name(o->backends[b]), k_motion_names[mo], r->params[0] ? ", " : "",
                                 r->params);
                         res = bench_one(&ms, m->name, o->backends[b], &settings, is_ref ? 0 : o->warmup,
-                                        is_ref ? 1 : frames, r, &first, &last, err);
+                                        is_ref ? 1 : frames, untracked, r, &first, &last, err);
                     }
                     lu_kv_free(&settings);
                     /* The reference renders one frame: its last state is the first. */
@@ -774,6 +800,7 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     if (res == LU_OK && o->img_dir) {
                         char p[1400], tail[64] = "";
                         if (ncombo > 1) snprintf(tail, sizeof tail, "-p%d", c);
+                        if (untracked) strcat(tail, "-untracked");
                         snprintf(p, sizeof p, "%s/%s%s%s-%s%s%s%s.exr", o->img_dir, o->nscenes > 1 ? stem : "",
                                  o->nscenes > 1 ? "-" : "", m->name, lu_backend_name(o->backends[b]),
                                  mo == MOTION_STILL ? "" : "-", mo == MOTION_STILL ? "" : k_motion_names[mo], tail);
@@ -797,6 +824,7 @@ int lu_cmd_bench(int argc, char **argv) {
     bench_opts o;
     memset(&o, 0, sizeof o);
     o.warmup = 1;
+    o.tracking = 1u;
     char methods_buf[1024] = "reference", backends_buf[64] = "cpu";
     int rc = parse_args(argc, argv, &o, methods_buf, sizeof methods_buf, backends_buf, sizeof backends_buf);
     row *rows = NULL;

@@ -85,6 +85,21 @@ grep -q "load average" "$tmp/table.txt" || { echo "FAIL: no load average"; exit 
 awk -F, -v f="$c_first" -v r=11 -v d="$c_lvf" 'NR == 2 { exit !($f == "" && $r == "" && $d > 0) } END { exit NR != 2 }' "$tmp/n.csv" ||
   { echo "FAIL: --no-truth row"; cat "$tmp/n.csv"; exit 1; }
 
+# --tracking both: every row twice, the second rebuilding everything each
+# frame. Change tracking may only save work: the last frame of every motion
+# must be the same image bit for bit either way.
+"$lucent" bench "$src/scenes/demo.json" --methods raymarch,afm --size 24x18 --frames 2 --motion orbit,light,medium \
+  --tracking both --no-truth --set raymarch.steps=32 --set afm.steps=32 --set afm.map_res=32 \
+  --csv "$tmp/t.csv" --save-images "$tmp/timg" >/dev/null 2>&1 || { echo "FAIL: --tracking both"; exit 1; }
+n=$(tail -n +2 "$tmp/t.csv" | grep -c "tracking=off" || true)
+[[ $n -eq 6 ]] || { echo "FAIL: $n untracked rows, expected 6"; cat "$tmp/t.csv"; exit 1; }
+for m in raymarch afm; do
+  for mo in orbit light medium; do
+    "$lucent" compare "$tmp/timg/$m-cpu-$mo.exr" "$tmp/timg/$m-cpu-$mo-untracked.exr" --max-rel-l2 0 >/dev/null ||
+      { echo "FAIL: $m $mo: the tracked frame differs from the untracked one"; exit 1; }
+  done
+done
+
 # Bad sweeps and motions are usage errors (exit 2) naming the argument.
 expect_usage() {
   local want=$1
@@ -105,6 +120,7 @@ expect_usage "outside" --sweep raymarch.steps=64,1
 expect_usage "given twice" --sweep raymarch.steps=64 --sweep raymarch.steps=128
 expect_usage "not among --methods" --methods reference --sweep raymarch.steps=64
 expect_usage "unknown motion" --motion spin
+expect_usage "expected on, off or both" --tracking sometimes
 expect_usage "exclude each other" --reference "$tmp/img/spot_shaft-truth.exr" --no-truth
 expect_usage "one SCENE" --reference "$tmp/img/spot_shaft-truth.exr" --motion orbit
 echo ok
