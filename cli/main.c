@@ -78,6 +78,9 @@ void lu_cli_print_methods(FILE *out) {
             else
                 fprintf(out, "    %s.%s = %g in [%g, %g] — %s\n", m->name, p->name, p->def, p->lo, p->hi, p->help);
         }
+        for (int j = 0; j < m->preset_count; j++)
+            fprintf(out, "    %s.preset = %s — %s: %s\n", m->name, m->presets[j].name, m->presets[j].help,
+                    m->presets[j].values);
     }
 }
 

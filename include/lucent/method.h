@@ -63,12 +63,23 @@ typedef enum lu_change {
  * (defined by the library's frame stage, src/methods/frame.h). */
 typedef struct lu_frame lu_frame;
 
+/* A named set of parameter values, chosen with the setting "method.preset"
+ * (e.g. "afm.preset" = "paper": the seed paper's settings). It replaces the
+ * defaults; explicit settings still override it. */
+typedef struct lu_preset {
+    const char *name;
+    const char *values;     /* "steps=500 map_res=1024": parameters of this method */
+    const char *help;
+} lu_preset;
+
 typedef struct lu_method {
     const char *name;
     const char *summary;
     unsigned backends;                  /* LU_BACKEND_CPU | LU_BACKEND_GPU */
     const lu_param_desc *params;
     int param_count;
+    const lu_preset *presets;           /* NULL or preset_count entries */
+    int preset_count;
     /* params: resolved values in descriptor order (choices as indices). */
     lu_result (*prepare)(const lu_scene *scene, const double *params, lu_backend backend, void **state,
                          lu_error *err);
@@ -84,8 +95,9 @@ typedef struct lu_method {
 const lu_method *const *lu_methods(int *count);
 const lu_method *lu_method_find(const char *name);
 
-/* Resolves settings for method m into values[] (defaults, then overrides);
- * checks ranges, integer-ness and choice names. */
+/* Resolves settings for method m into values[] (defaults, then the preset
+ * "m.preset" names, then explicit overrides); checks ranges, integer-ness,
+ * choice and preset names. */
 lu_result lu_method_resolve_params(const lu_method *m, const lu_kvlist *settings, double *values, lu_error *err);
 /* Validates every key of settings against the registry (method exists, param exists). */
 lu_result lu_settings_validate(const lu_kvlist *settings, lu_error *err);

@@ -67,6 +67,21 @@ static lu_result unknown_param(const lu_method *m, const char *key, lu_error *er
                    names[0] ? names : "none");
 }
 
+static const lu_preset *find_preset(const lu_method *m, const char *name) {
+    for (int i = 0; i < m->preset_count; i++)
+        if (strcmp(m->presets[i].name, name) == 0) return &m->presets[i];
+    return NULL;
+}
+
+static lu_result unknown_preset(const lu_method *m, const lu_kv *kv, lu_error *err) {
+    char names[256] = "";
+    size_t used = 0;
+    for (int i = 0; i < m->preset_count && used + 1 < sizeof names; i++)
+        used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "", m->presets[i].name);
+    return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": method %s has no preset \"%s\" (it has: %s)", kv->key, m->name,
+                   kv->count == 0 ? kv->str : "(a number)", names[0] ? names : "none");
+}
+
 lu_result lu_settings_validate(const lu_kvlist *settings, lu_error *err) {
     for (int i = 0; settings && i < settings->count; i++) {
         const char *key = settings->items[i].key;
@@ -77,39 +92,72 @@ lu_result lu_settings_validate(const lu_kvlist *settings, lu_error *err) {
         const lu_method *m = lu_method_find(mname);
         if (!m) return lu_fail(err, LU_ERR_INVALID_ARG, "setting \"%s\": no method named \"%s\"", key, mname);
         int idx;
+        if (strcmp(dot + 1, "preset") == 0) {
+            const lu_kv *kv = &settings->items[i];
+            if (kv->count != 0 || !find_preset(m, kv->str)) return unknown_preset(m, kv, err);
+            continue;
+        }
         if (!find_param(m, dot + 1, &idx)) return unknown_param(m, key, err);
     }
+    return LU_OK;
+}
+
+
+
+static lu_result set_value(const lu_method *m, const lu_kv *kv, const char *pname, double *values, lu_error *err) {
+    int idx;
+    const lu_param_desc *pd = find_param(m, pname, &idx);
+    if (!pd) return unknown_param(m, kv->key, err);
+    double v;
+    if (pd->type == LU_PARAM_CHOICE) {
+        int c = kv->count == 0 ? choice_index(pd->choices, kv->str) : -1;
+        if (c < 0) return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected one of %s", kv->key, pd->choices);
+        v = c;
+    } else if (pd->type == LU_PARAM_BOOL && kv->count == 0) {
+        if (strcmp(kv->str, "true") == 0 || strcmp(kv->str, "on") == 0) v = 1;
+        else if (strcmp(kv->str, "false") == 0 || strcmp(kv->str, "off") == 0) v = 0;
+        else return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected true/false or 1/0", kv->key);
+    } else {
+        if (kv->count != 1) return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected a single number", kv->key);
+        v = kv->v[0];
+        if (pd->type != LU_PARAM_FLOAT && v != (double)(long long)v)
+            return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected an integer, got %g", kv->key, v);
+        if (!(v >= pd->lo && v <= pd->hi))
+            return lu_fail(err, LU_ERR_RANGE, "setting \"%s\" = %g is outside [%g, %g]", kv->key, v, pd->lo, pd->hi);
+    }
+    values[idx] = v;
     return LU_OK;
 }
 
 lu_result lu_method_resolve_params(const lu_method *m, const lu_kvlist *settings, double *values, lu_error *err) {
     for (int i = 0; i < m->param_count; i++) values[i] = m->params[i].def;
     size_t prefix = strlen(m->name);
+    /* the preset first, so explicit settings override it */
+    for (int i = 0; settings && i < settings->count; i++) {
+        const lu_kv *kv = &settings->items[i];
+        if (strncmp(kv->key, m->name, prefix) != 0 || kv->key[prefix] != '.' || strcmp(kv->key + prefix + 1, "preset"))
+            continue;
+        const lu_preset *ps = kv->count == 0 ? find_preset(m, kv->str) : NULL;
+        if (!ps) return unknown_preset(m, kv, err);
+        lu_kvlist pv = {0};
+        lu_result r = LU_OK;
+        char text[512];
+        snprintf(text, sizeof text, "%s", ps->values);
+        for (char *tok = strtok(text, " "); tok && r == LU_OK; tok = strtok(NULL, " ")) {
+            char full[LU_KV_KEY_MAX + 256];
+            snprintf(full, sizeof full, "%s.%s", m->name, tok);
+            r = lu_kv_parse_assignment(&pv, full, err);
+        }
+        for (int j = 0; j < pv.count && r == LU_OK; j++) r = set_value(m, &pv.items[j], pv.items[j].key + prefix + 1, values, err);
+        lu_kv_free(&pv);
+        if (r != LU_OK) return r;
+    }
     for (int i = 0; settings && i < settings->count; i++) {
         const lu_kv *kv = &settings->items[i];
         if (strncmp(kv->key, m->name, prefix) != 0 || kv->key[prefix] != '.') continue;
-        int idx;
-        const lu_param_desc *pd = find_param(m, kv->key + prefix + 1, &idx);
-        if (!pd) return unknown_param(m, kv->key, err);
-        double v;
-        if (pd->type == LU_PARAM_CHOICE) {
-            int c = kv->count == 0 ? choice_index(pd->choices, kv->str) : -1;
-            if (c < 0)
-                return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected one of %s", kv->key, pd->choices);
-            v = c;
-        } else if (pd->type == LU_PARAM_BOOL && kv->count == 0) {
-            if (strcmp(kv->str, "true") == 0 || strcmp(kv->str, "on") == 0) v = 1;
-            else if (strcmp(kv->str, "false") == 0 || strcmp(kv->str, "off") == 0) v = 0;
-            else return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected true/false or 1/0", kv->key);
-        } else {
-            if (kv->count != 1) return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected a single number", kv->key);
-            v = kv->v[0];
-            if (pd->type != LU_PARAM_FLOAT && v != (double)(long long)v)
-                return lu_fail(err, LU_ERR_RANGE, "setting \"%s\": expected an integer, got %g", kv->key, v);
-            if (!(v >= pd->lo && v <= pd->hi))
-                return lu_fail(err, LU_ERR_RANGE, "setting \"%s\" = %g is outside [%g, %g]", kv->key, v, pd->lo, pd->hi);
-        }
-        values[idx] = v;
+        if (strcmp(kv->key + prefix + 1, "preset") == 0) continue;
+        lu_result r = set_value(m, kv, kv->key + prefix + 1, values, err);
+        if (r != LU_OK) return r;
     }
     return LU_OK;
 }
