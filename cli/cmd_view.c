@@ -41,6 +41,10 @@ static void usage(void) {
            "                      rendered at a reduced resolution that fits it and upsampled\n"
            "                      (bilinear); when input stops the resolution doubles per frame\n"
            "                      back to full, which is the image `lucent render` gives\n"
+           "  --moving-set M.P=V  settings of the frames rendered while moving (repeatable;\n"
+           "                      default afm.map_res=64 afm.samples=16 afm.steps=100; `none`\n"
+           "                      drops the defaults); after the resolution, the quality\n"
+           "                      refines to --set's\n"
            "  --set M.P=V         method parameters, as for render (repeatable)\n"
            "  --size WxH          image and window size (default: the scene camera's)\n"
            "  --exposure E        scale by 2^E before the sRGB curve (default 0)\n"
@@ -111,6 +115,17 @@ static const struct {
 #define LU_VIEW_GRACE_S 0.15
 /* A scripted run stops refining this long after its last input. */
 #define LU_VIEW_SETTLE_CAP_S 60.0
+/* Settings of the frames rendered while moving (besides the lower
+ * resolution), where a method's defaults spend far more than a moving image
+ * needs: afm rebuilds its attenuation maps every frame, and at 64² texels and
+ * 16 samples per texel they cost about a tenth; 100 view steps instead of
+ * 500 a fifth of the march (docs/gpu.md, the viewer).
+ * --moving-set adds to them, --moving-set none drops them. */
+static const struct {
+    const char *key;
+    double value;
+} k_moving[] = {{"afm.map_res", 64}, {"afm.samples", 16}, {"afm.steps", 100}};
+
 /* Trailing frames of one view kept for --stats' rel-L2. */
 #define LU_VIEW_STATS_KEEP 64
 
@@ -119,7 +134,10 @@ typedef struct stats_row {
     double ms, scale;
     float *shown;              /* the window-size linear image, while it shows the final view */
     double rel_l2;             /* < 0: not available */
+    bool full;                 /* the full image: scale 1 at full quality */
 } stats_row;
+
+enum { Q_FULL = 0, Q_MOVING = 1 };
 
 typedef struct viewer {
     lu_scene scene;
@@ -128,7 +146,9 @@ typedef struct viewer {
     const char *scene_path;
     lu_backend want_backend;
     lu_kvlist settings;
+    lu_kvlist moving_settings; /* settings + k_moving + --moving-set */
     int method_index;
+    lu_renderer *rq[2];        /* per quality (Q_FULL, Q_MOVING); r is the one used last */
     lu_renderer *r;
     bool need_create;          /* method, knob or light changed: prepare again */
     bool dirty;                /* the view changed: the image must be rendered again */
@@ -151,9 +171,10 @@ typedef struct viewer {
     /* the frame budget */
     double budget_ms;
     double scale;              /* of the image shown (render width / window width) */
-    double cost_px_ms;         /* render ms per pixel, smoothed over the last frames */
-    double overhead_ms;        /* frame ms outside the method's render, smoothed */
-    bool have_cost;
+    int quality;               /* of the image shown: Q_FULL or Q_MOVING */
+    double cost_px_ms[2];      /* per quality: render ms per pixel, smoothed over the last frames */
+    double overhead_ms[2];     /* frame ms outside the method's render, smoothed */
+    bool have_cost[2];
     double last_input;         /* glfwGetTime() of the last change of the view */
     /* live error: the reference rendered (key C) for one camera and set of lights */
     lu_image ref;
@@ -216,13 +237,15 @@ static double min_scale(const viewer *v) {
     return fmin(1.0, fmax(1.0 / 16.0, 4.0 / short_side));
 }
 
-/* The scale whose frame is predicted to fit the budget: frame ms = overhead
+/* The scale whose frame at quality q is predicted to fit the budget: frame ms = overhead
  * + render ms, render ms = cost per pixel x pixels. Changes under 10 % are
  * ignored so the render size (and the methods' buffers) stays put. */
-static double budget_scale(const viewer *v) {
-    if (!v->have_cost) return v->scale;
-    double avail = fmax(v->budget_ms - v->overhead_ms, 0.25 * v->budget_ms);
-    double s = sqrt(avail / (fmax(v->cost_px_ms, 1e-12) * v->width * v->height));
+static double budget_scale(const viewer *v, int q) {
+    /* no measurement yet: the full quality keeps its scale (1 at start), the
+     * moving quality starts small and grows from its first measured frame */
+    if (!v->have_cost[q]) return q == Q_FULL ? v->scale : min_scale(v);
+    double avail = fmax(v->budget_ms - v->overhead_ms[q], 0.25 * v->budget_ms);
+    double s = sqrt(avail / (fmax(v->cost_px_ms[q], 1e-12) * v->width * v->height));
     s = fmin(1.0, fmax(min_scale(v), s));
     if (fabs(s - v->scale) < 0.1 * v->scale) s = v->scale;
     return s;
@@ -231,20 +254,54 @@ static double budget_scale(const viewer *v) {
 /* Folds one frame into the cost model: half the weight on the newest frame,
  * so a change of method or view cost is followed within a few frames. */
 static void update_cost(viewer *v, double render_ms, double frame_ms) {
+    int q = v->quality;
     double px = (double)v->img.width * v->img.height;
     double c = render_ms / px, o = fmax(0.0, frame_ms - render_ms);
-    if (!v->have_cost) {
-        v->cost_px_ms = c;
-        v->overhead_ms = o;
-        v->have_cost = true;
+    if (!v->have_cost[q]) {
+        v->cost_px_ms[q] = c;
+        v->overhead_ms[q] = o;
+        v->have_cost[q] = true;
     } else {
-        v->cost_px_ms = 0.5 * (v->cost_px_ms + c);
-        v->overhead_ms = 0.5 * (v->overhead_ms + o);
+        v->cost_px_ms[q] = 0.5 * (v->cost_px_ms[q] + c);
+        v->overhead_ms[q] = 0.5 * (v->overhead_ms[q] + o);
     }
 }
 
+/* Whether the current method renders differently under the moving settings
+ * (progressive methods never do: their passes restart on every change). */
+static bool has_moving_quality(const viewer *v) {
+    const lu_method *m = current_method(v);
+    double a[LU_MAX_PARAMS], b[LU_MAX_PARAMS];
+    lu_error err;
+    if (progressive(v) || m->param_count > LU_MAX_PARAMS || lu_method_resolve_params(m, &v->settings, a, &err) != LU_OK ||
+        lu_method_resolve_params(m, &v->moving_settings, b, &err) != LU_OK)
+        return false;
+    return memcmp(a, b, (size_t)m->param_count * sizeof *a) != 0;
+}
+
+/* dst gets every entry of src (later entries replace earlier ones). */
+static lu_result kv_copy(lu_kvlist *dst, const lu_kvlist *src, lu_error *err) {
+    lu_result r = LU_OK;
+    for (int i = 0; i < src->count && r == LU_OK; i++) {
+        const lu_kv *kv = &src->items[i];
+        r = kv->count ? lu_kv_set_number(dst, kv->key, kv->v, kv->count, err) : lu_kv_set_string(dst, kv->key, kv->str, err);
+    }
+    return r;
+}
+
+static void destroy_renderers(viewer *v) {
+    for (int q = 0; q < 2; q++) {
+        if (v->rq[q] == v->r) v->r = NULL;
+        lu_renderer_destroy(v->rq[q]);
+        v->rq[q] = NULL;
+    }
+    lu_renderer_destroy(v->r);
+    v->r = NULL;
+}
+
 /* (Re)creates the renderer when needed and renders one frame (one more pass
- * for progressive methods) at scale v->scale into v->img. */
+ * for progressive methods) at scale v->scale and quality v->quality into
+ * v->img. */
 static bool render_frame(viewer *v) {
     lu_error err = {0};
     const lu_method *m = current_method(v);
@@ -273,15 +330,22 @@ static bool render_frame(viewer *v) {
         double one = 1, seed = 1 + v->passes;
         lu_kv_set_number(&s, "pathtrace.spp", &one, 1, &err);
         lu_kv_set_number(&s, "pathtrace.seed", &seed, 1, &err);
-        lu_renderer_destroy(v->r);
-        v->r = NULL;
+        destroy_renderers(v);
         lu_result rc = lu_renderer_create(m->name, &at, &s, backend_for(v), &v->r, &err);
         lu_kv_free(&s);
         if (rc != LU_OK) goto fail;
-    } else if (v->need_create || !v->r) {
-        lu_renderer_destroy(v->r);
-        v->r = NULL;
-        if (lu_renderer_create(m->name, &at, &v->settings, backend_for(v), &v->r, &err) != LU_OK) goto fail;
+    } else {
+        if (v->need_create)
+            for (int q = 0; q < 2; q++) {
+                lu_renderer_destroy(v->rq[q]);
+                v->rq[q] = NULL;
+            }
+        v->need_create = false;
+        int q = v->quality;
+        if (!v->rq[q] && lu_renderer_create(m->name, &at, q == Q_MOVING ? &v->moving_settings : &v->settings,
+                                            backend_for(v), &v->rq[q], &err) != LU_OK)
+            goto fail;
+        v->r = v->rq[q];
     }
     v->need_create = false;
     v->prepare_ms = v->r->prepare_ms;
@@ -419,9 +483,9 @@ static void compose(viewer *v) {
     snprintf(lines[2], sizeof lines[2], "spp %d%s  exposure %+.1f", v->passes, knob, v->exposure);
     const lu_light *l = v->scene.light_count ? &v->scene.lights[v->light] : NULL;
     static const char *const kinds[] = {"point", "spot", "directional", "environment"};
-    snprintf(lines[3], sizeof lines[3], "light %d/%d %s  %dx%d  scale %.2f  budget %.0f ms",
+    snprintf(lines[3], sizeof lines[3], "light %d/%d %s  %dx%d  scale %.2f%s  budget %.0f ms",
              v->scene.light_count ? v->light + 1 : 0, v->scene.light_count, l ? kinds[l->type] : "-", v->img.width,
-             v->img.height, v->scale, v->budget_ms);
+             v->img.height, v->scale, v->quality == Q_MOVING ? " moving quality" : "", v->budget_ms);
     snprintf(lines[4], sizeof lines[4], "%.159s", v->status[0] ? v->status : "tab method  +/- quality  arrows light  h hide");
     int bw = 0;
     for (int i = 0; i < 5; i++) {
@@ -541,7 +605,7 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
     case GLFW_KEY_TAB:
         v->method_index = (v->method_index + ((mods & GLFW_MOD_SHIFT) ? n - 1 : 1)) % n;
         v->need_create = true;
-        v->have_cost = false;   /* another method: its own cost */
+        v->have_cost[Q_FULL] = v->have_cost[Q_MOVING] = false;   /* another method: its own cost */
         reset_accumulation(v);
         break;
     case GLFW_KEY_EQUAL:
@@ -652,7 +716,8 @@ static bool stats_add(viewer *v, int frame, double ms, bool new_view) {
     }
     stats_row *r = &v->rows[v->row_count++];
     size_t n = (size_t)v->width * v->height * 3;
-    *r = (stats_row){frame, ms, (double)v->img.width / v->width, malloc(n * sizeof(float)), -1.0};
+    *r = (stats_row){frame, ms, (double)v->img.width / v->width, malloc(n * sizeof(float)), -1.0,
+                     v->img.width == v->width && v->img.height == v->height && v->quality == Q_FULL};
     if (r->shown) memcpy(r->shown, v->shown.rgb, n * sizeof(float));
     return true;
 }
@@ -730,13 +795,13 @@ static void script_summary(const viewer *v, lu_view_script kind, int frames) {
         if (r->frame < frames) continue;
         if (r->frame > frames) settle += r->ms;
         if (within2 < 0.0 && r->rel_l2 >= 0.0 && r->rel_l2 <= 0.02) within2 = settle;
-        if (full < 0.0 && r->frame >= frames && r->scale == 1.0) full = settle;
+        if (full < 0.0 && r->full) full = settle;
     }
     fprintf(stderr, "lucent view: script %s, %d frames of %s on %s: median %.1f ms (%.1f fps) at median scale %.3g; ",
             lu_view_script_name(kind), frames, current_method(v)->name, lu_backend_name(backend_for(v)), med,
             1e3 / med, med_scale);
-    if (full >= 0.0) fprintf(stderr, "full resolution %.0f ms after the last input", full);
-    else fprintf(stderr, "full resolution not reached");
+    if (full >= 0.0) fprintf(stderr, "full image %.0f ms after the last input", full);
+    else fprintf(stderr, "full image not reached");
     if (within2 >= 0.0) fprintf(stderr, ", within 2 %% of a fresh render after %.0f ms", within2);
     if (last->rel_l2 >= 0.0) fprintf(stderr, ", last frame rel-L2 %.3g", last->rel_l2);
     fputc('\n', stderr);
@@ -747,7 +812,8 @@ static void script_summary(const viewer *v, lu_view_script kind, int frames) {
 int lu_cmd_view(int argc, char **argv) {
     const char *scene_path = NULL, *method = "raymarch", *shot = NULL, *stats_path = NULL;
     int width = 0, height = 0, frames = -1, rc = LU_EXIT_OK;
-    bool compare = false;
+    bool compare = false, moving_defaults = true;
+    lu_kvlist moving_extra = {0};
     lu_view_script script = LU_VIEW_SCRIPT_NONE;
     static viewer v;
     memset(&v, 0, sizeof v);
@@ -769,6 +835,9 @@ int lu_cmd_view(int argc, char **argv) {
                 rc = lu_cli_usage("view", "--backend takes cpu, gpu or auto");
         } else if (strcmp(a, "--set") == 0 && has_next) {
             if (lu_kv_parse_assignment(&v.settings, argv[++i], &err) != LU_OK) rc = lu_cli_error("view", &err);
+        } else if (strcmp(a, "--moving-set") == 0 && has_next) {
+            if (strcmp(argv[++i], "none") == 0) moving_defaults = false;
+            else if (lu_kv_parse_assignment(&moving_extra, argv[i], &err) != LU_OK) rc = lu_cli_error("view", &err);
         } else if (strcmp(a, "--size") == 0 && has_next) {
             if (!lu_cli_parse_size(argv[++i], &width, &height)) rc = lu_cli_usage("view", "--size takes WxH");
         } else if (strcmp(a, "--exposure") == 0 && has_next) {
@@ -811,8 +880,31 @@ int lu_cmd_view(int argc, char **argv) {
     const lu_method *m0 = rc == LU_EXIT_OK ? lu_method_find(method) : NULL;
     if (rc == LU_EXIT_OK && !m0) rc = lu_cli_usage("view", "no method named \"%s\" (see lucent methods)", method);
     if (rc == LU_EXIT_OK && lu_settings_validate(&v.settings, &err) != LU_OK) rc = lu_cli_error("view", &err);
+    /* the moving settings: --set, then the defaults, then --moving-set; each
+     * method must accept them */
+    if (rc == LU_EXIT_OK && kv_copy(&v.moving_settings, &v.settings, &err) != LU_OK) rc = lu_cli_error("view", &err);
+    for (size_t i = 0; moving_defaults && rc == LU_EXIT_OK && i < sizeof k_moving / sizeof k_moving[0]; i++)
+        if (lu_kv_set_number(&v.moving_settings, k_moving[i].key, &k_moving[i].value, 1, &err) != LU_OK)
+            rc = lu_cli_error("view", &err);
+    if (rc == LU_EXIT_OK && kv_copy(&v.moving_settings, &moving_extra, &err) != LU_OK) rc = lu_cli_error("view", &err);
+    if (rc == LU_EXIT_OK && lu_settings_validate(&moving_extra, &err) != LU_OK) {
+        fprintf(stderr, "lucent view: error: --moving-set: %s\n", err.message);
+        rc = LU_EXIT_FAIL;
+    }
+    {
+        int nm;
+        const lu_method *const *ms = lu_methods(&nm);
+        double vals[LU_MAX_PARAMS];
+        for (int i = 0; i < nm && rc == LU_EXIT_OK; i++)
+            if (lu_method_resolve_params(ms[i], &v.moving_settings, vals, &err) != LU_OK) {
+                fprintf(stderr, "lucent view: error: --moving-set: %s\n", err.message);
+                rc = LU_EXIT_FAIL;
+            }
+    }
+    lu_kv_free(&moving_extra);
     if (rc != LU_EXIT_OK) {
         lu_kv_free(&v.settings);
+        lu_kv_free(&v.moving_settings);
         return rc;
     }
     if (frames < 0) frames = script ? 8 : 1;
@@ -824,6 +916,7 @@ int lu_cmd_view(int argc, char **argv) {
     rc = lu_cli_load_scene("view", scene_path, width, height, &v.scene);
     if (rc != LU_EXIT_OK) {
         lu_kv_free(&v.settings);
+        lu_kv_free(&v.moving_settings);
         return rc;
     }
     char why[200];
@@ -831,6 +924,7 @@ int lu_cmd_view(int argc, char **argv) {
         rc = lu_cli_usage("view", "--script light: %s (%s)", why, scene_path);
         lu_scene_destroy(&v.scene);
         lu_kv_free(&v.settings);
+        lu_kv_free(&v.moving_settings);
         return rc;
     }
     v.cam0 = v.scene.camera;
@@ -902,11 +996,17 @@ int lu_cmd_view(int argc, char **argv) {
                                   : v.dragging || v.dragging_light || t0 - v.last_input < LU_VIEW_GRACE_S;
         bool render_now = false, new_view = v.dirty;
         if (v.dirty) {
-            v.scale = interacting ? budget_scale(&v) : 1.0;
+            v.quality = interacting && has_moving_quality(&v) ? Q_MOVING : Q_FULL;
+            v.scale = interacting ? budget_scale(&v, v.quality) : 1.0;
             render_now = true;
-        } else if (v.scale < 1.0 && !interacting && !v.status[0]) {
-            v.scale = fmin(1.0, 2.0 * v.scale);   /* refine */
-            if (v.scale > 0.75) v.scale = 1.0;    /* the last step goes to full, not to 0.8 */
+        } else if ((v.scale < 1.0 || v.quality != Q_FULL) && !interacting && !v.status[0]) {
+            /* refine: the resolution doubles, then the quality goes to full */
+            if (v.scale < 1.0) {
+                v.scale = fmin(1.0, 2.0 * v.scale);
+                if (v.scale > 0.75) v.scale = 1.0;   /* the last step goes to full, not to 0.8 */
+            } else {
+                v.quality = Q_FULL;
+            }
             render_now = true;
         } else if (progressive(&v) && !v.status[0] && (!script || v.passes < spp_goal)) {
             render_now = true;
@@ -916,7 +1016,7 @@ int lu_cmd_view(int argc, char **argv) {
         if (script && !scripted_step && shown_frames > 0 && !render_now) settled = true;
         if (script && script_frame == frames && t0 - script_end > LU_VIEW_SETTLE_CAP_S) settled = true;
         if (settled && script) {
-            if (v.scale < 1.0 || (progressive(&v) && v.passes < spp_goal))
+            if (v.scale < 1.0 || v.quality != Q_FULL || (progressive(&v) && v.passes < spp_goal))
                 fprintf(stderr, "lucent view: the full image was not reached %.0f s after the last input\n",
                         LU_VIEW_SETTLE_CAP_S);
             break;
@@ -956,7 +1056,7 @@ int lu_cmd_view(int argc, char **argv) {
         }
         if (last_shot) break;
         if (script || render_now) glfwPollEvents();
-        else if (v.scale < 1.0 && !v.dragging && !v.dragging_light)
+        else if ((v.scale < 1.0 || v.quality != Q_FULL) && !v.dragging && !v.dragging_light)
             glfwWaitEventsTimeout(fmax(0.001, LU_VIEW_GRACE_S - (glfwGetTime() - v.last_input)));
         else glfwWaitEventsTimeout(0.25);
     }
@@ -984,15 +1084,14 @@ int lu_cmd_view(int argc, char **argv) {
     }
     if (rc == LU_EXIT_OK && script) script_summary(&v, script, frames);
     /* the method's contexts go before the window's */
-    lu_renderer_destroy(v.r);
-    v.r = NULL;
+    destroy_renderers(&v);
     glfwDestroyWindow(win);
     /* No glfwTerminate: it closes the display and unloads the GL driver, and
      * Mesa 22.3's swrast_dri.so leaks on every unload (LeakSanitizer; the same
      * reason the GPU backend never terminates its EGL displays, context.c).
      * The process ends right after this command. */
 done:
-    lu_renderer_destroy(v.r);
+    destroy_renderers(&v);
     lu_image_destroy(&v.img);
     lu_image_destroy(&v.shown);
     lu_image_destroy(&v.ref);
@@ -1004,6 +1103,7 @@ done:
     free(v.lights0);
     lu_scene_destroy(&v.scene);
     lu_kv_free(&v.settings);
+    lu_kv_free(&v.moving_settings);
     return rc;
 }
 

@@ -93,10 +93,24 @@ awk '$1 == "rel_l2" { exit !($2 <= 1e-3) }' "$tmp/c.txt" || { cat "$tmp/c.txt"; 
 echo "  orbit: settled screenshot vs render of the turned camera $(grep rel_l2 "$tmp/c.txt")"
 
 # ample budget: every moving frame fits at full resolution
-view "$scene" "${cheap[@]}" --no-overlay --script orbit --frames 3 --budget 60000 --stats "$tmp/ample.csv" 2>"$tmp/e.txt" \
+view "$scene" "${cheap[@]}" --no-overlay --moving-set none --script orbit --frames 3 --budget 60000 --stats "$tmp/ample.csv" 2>"$tmp/e.txt" \
   || { cat "$tmp/e.txt"; fail "scripted orbit, ample budget"; }
 awk -F, 'NR > 1 && $3 != 1 { bad = 1 } END { exit bad || NR != 5 }' "$tmp/ample.csv" \
   || { cat "$tmp/ample.csv"; fail "ample budget: expected frames 0-3, all at scale 1"; }
+
+# moving quality: with an ample budget the moving frames are at full
+# resolution (after the first, which starts small as nothing is measured at
+# that quality yet) but at --moving-set's settings (8 steps), so the last
+# scripted frame differs from the full image; one more frame after the input
+# stops is the full image
+view "$scene" "${cheap[@]}" --no-overlay --script orbit --frames 3 --budget 60000 --moving-set raymarch.steps=8 \
+  --stats "$tmp/mq.csv" 2>"$tmp/e.txt" || { cat "$tmp/e.txt"; fail "scripted orbit, moving quality"; }
+awk -F, 'NR > 1 { rows++; if ($1 != 1 && $3 != 1) bad = 1; err[$1] = $4 }
+  END { exit bad || rows != 5 || !(err[3] > 0.001) || err[4] != 0 }' "$tmp/mq.csv" \
+  || { cat "$tmp/mq.csv"; fail "moving quality: expected frames 0-4 at scale 1 (but 1, the first of its quality), frame 3 off the full image, frame 4 on it"; }
+"$lucent" view "$scene" --moving-set raymarch.steps=0 2>"$tmp/e.txt"
+[[ $? == 1 ]] || fail "--moving-set out of range: expected exit 1"
+grep -q "moving-set.*raymarch.steps" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "--moving-set message"; }
 
 # light: the first light turns; the settled image equals the render of the turned light
 n=5
