@@ -155,6 +155,7 @@ typedef struct viewer {
     int width, height;         /* the window and the full image */
     lu_image img;              /* the last render, at the render size (scale x window) */
     lu_image shown;            /* img upsampled to the window (linear) */
+    struct tap *cols;          /* upsampling: the source columns of each window column */
     float *accum;              /* progressive: sum of passes (at the render size) */
     int passes;
     uint8_t *rgb;              /* displayed image, top row first */
@@ -376,39 +377,47 @@ fail:
 
 /* Bilinear: window pixel centre x maps to (x + 0.5) * rw / W - 0.5 in the
  * render image, clamped at the edges; at scale 1 it is a copy. */
+typedef struct tap {
+    int a, b;                  /* the two source pixels */
+    float t;                   /* weight of b */
+} tap;
+
+static tap tap_at(int i, int src, int dst) {
+    double f = (i + 0.5) * src / dst - 0.5;
+    int a = (int)floor(f);
+    tap p = {a, a + 1, (float)(f - a)};
+    if (a < 0) p.a = p.b = 0, p.t = 0.0f;
+    if (p.b > src - 1) p.b = src - 1;
+    return p;
+}
+
 static void upsample_rows(void *ctx, int64_t y0, int64_t y1, int thread) {
     (void)thread;
     viewer *v = ctx;
     const lu_image *src = &v->img;
-    int sw = src->width, sh = src->height, W = v->width;
+    int sw = src->width, W = v->width;
     for (int64_t y = y0; y < y1; y++) {
         float *dst = v->shown.rgb + (size_t)y * W * 3;
-        double fy = (y + 0.5) * sh / v->height - 0.5;
-        int ya = (int)floor(fy);
-        float ty = (float)(fy - ya);
-        if (ya < 0) ya = 0, ty = 0.0f;
-        int yb = ya + 1 < sh ? ya + 1 : sh - 1;
-        const float *ra = src->rgb + (size_t)ya * sw * 3, *rb = src->rgb + (size_t)yb * sw * 3;
+        tap ty = tap_at((int)y, src->height, v->height);
+        const float *ra = src->rgb + (size_t)ty.a * sw * 3, *rb = src->rgb + (size_t)ty.b * sw * 3;
         for (int x = 0; x < W; x++) {
-            double fx = (x + 0.5) * sw / W - 0.5;
-            int xa = (int)floor(fx);
-            float tx = (float)(fx - xa);
-            if (xa < 0) xa = 0, tx = 0.0f;
-            int xb = xa + 1 < sw ? xa + 1 : sw - 1;
+            const tap *tx = &v->cols[x];
             for (int c = 0; c < 3; c++) {
-                float top = ra[xa * 3 + c] + tx * (ra[xb * 3 + c] - ra[xa * 3 + c]);
-                float bot = rb[xa * 3 + c] + tx * (rb[xb * 3 + c] - rb[xa * 3 + c]);
-                dst[x * 3 + c] = top + ty * (bot - top);
+                float top = ra[tx->a * 3 + c] + tx->t * (ra[tx->b * 3 + c] - ra[tx->a * 3 + c]);
+                float bot = rb[tx->a * 3 + c] + tx->t * (rb[tx->b * 3 + c] - rb[tx->a * 3 + c]);
+                dst[x * 3 + c] = top + ty.t * (bot - top);
             }
         }
     }
 }
 
 static void upsample(viewer *v) {
-    if (v->img.width == v->width && v->img.height == v->height)
+    if (v->img.width == v->width && v->img.height == v->height) {
         memcpy(v->shown.rgb, v->img.rgb, (size_t)v->width * v->height * 3 * sizeof(float));
-    else
-        lu_parallel_for(v->height, 8, upsample_rows, v, NULL);
+        return;
+    }
+    for (int x = 0; x < v->width; x++) v->cols[x] = tap_at(x, v->img.width, v->width);
+    lu_parallel_for(v->height, 8, upsample_rows, v, NULL);
 }
 
 typedef struct tone_job {
@@ -416,14 +425,42 @@ typedef struct tone_job {
     float gain;
 } tone_job;
 
-/* As the PNG writer (lu_image_save) does it. */
+/* The byte the PNG writer (lu_image_save) makes of a linear value. */
+static uint8_t tone_byte(float x) {
+    float e = lu_srgb_encode(x);
+    return (uint8_t)lrintf(255.0f * (e < 1.0f ? e : 1.0f));
+}
+
+/* tone_byte by the top 16 bits of the float: every float sharing them gives
+ * the byte stored, or 0xFFFF where the bucket's two ends differ (then it is
+ * computed). Exact because tone_byte does not decrease with the value: checked
+ * over every float from 0 to 16 (above, it is 255), so equal ends mean
+ * a constant bucket (negatives and NaN give 0 at both ends). A window
+ * frame tone maps 3 values per pixel; powf on each cost as much as a cheap
+ * method's moving frame. */
+static uint16_t g_tone_lut[65536];
+
+static void tone_lut_init(void) {
+    for (uint32_t i = 0; i < 65536; i++) {
+        uint32_t lo = i << 16, hi = lo | 0xFFFFu;
+        float a, b;
+        memcpy(&a, &lo, sizeof a);
+        memcpy(&b, &hi, sizeof b);
+        uint8_t ta = tone_byte(a), tb = tone_byte(b);
+        g_tone_lut[i] = ta == tb ? ta : 0xFFFF;
+    }
+}
+
 static void tone_rows(void *ctx, int64_t y0, int64_t y1, int thread) {
     (void)thread;
     const tone_job *j = ctx;
     size_t row = (size_t)j->v->width * 3;
     for (size_t i = (size_t)y0 * row; i < (size_t)y1 * row; i++) {
-        float e = lu_srgb_encode(j->v->shown.rgb[i] * j->gain);
-        j->v->rgb[i] = (uint8_t)lrintf(255.0f * (e < 1.0f ? e : 1.0f));
+        float x = j->v->shown.rgb[i] * j->gain;
+        uint32_t bits;
+        memcpy(&bits, &x, sizeof bits);
+        uint16_t t = g_tone_lut[bits >> 16];
+        j->v->rgb[i] = t != 0xFFFF ? (uint8_t)t : tone_byte(x);
     }
 }
 
@@ -938,8 +975,10 @@ int lu_cmd_view(int argc, char **argv) {
     v.rel_l2 = -1.0;
     v.accum = malloc((size_t)w * h * 3 * sizeof(float));
     v.rgb = malloc((size_t)w * h * 3);
+    v.cols = malloc((size_t)w * sizeof *v.cols);
+    tone_lut_init();
     GLFWwindow *win = NULL;
-    if (!v.lights0 || !v.ref_lights || !v.accum || !v.rgb || lu_image_create(&v.shown, w, h, &err) != LU_OK) {
+    if (!v.lights0 || !v.ref_lights || !v.accum || !v.rgb || !v.cols || lu_image_create(&v.shown, w, h, &err) != LU_OK) {
         fprintf(stderr, "lucent view: error: out of memory for a %dx%d image\n", w, h);
         rc = LU_EXIT_FAIL;
         goto done;
@@ -1100,6 +1139,7 @@ done:
     free(v.ref_lights);
     free(v.accum);
     free(v.rgb);
+    free(v.cols);
     free(v.lights0);
     lu_scene_destroy(&v.scene);
     lu_kv_free(&v.settings);
