@@ -134,7 +134,7 @@ typedef struct stats_row {
     double ms, scale;
     float *shown;              /* the window-size linear image, while it shows the final view */
     double rel_l2;             /* < 0: not available */
-    bool full;                 /* the full image: scale 1 at full quality */
+    bool full;                 /* the full image: scale 1 at full quality (progressive: all passes) */
 } stats_row;
 
 enum { Q_FULL = 0, Q_MOVING = 1 };
@@ -753,8 +753,10 @@ static bool stats_add(viewer *v, int frame, double ms, bool new_view) {
     }
     stats_row *r = &v->rows[v->row_count++];
     size_t n = (size_t)v->width * v->height * 3;
-    *r = (stats_row){frame, ms, (double)v->img.width / v->width, malloc(n * sizeof(float)), -1.0,
-                     v->img.width == v->width && v->img.height == v->height && v->quality == Q_FULL};
+    /* progressive methods get no rel_l2 (stats_compare), so nothing to keep */
+    *r = (stats_row){frame, ms, (double)v->img.width / v->width, progressive(v) ? NULL : malloc(n * sizeof(float)), -1.0,
+                     v->img.width == v->width && v->img.height == v->height && v->quality == Q_FULL &&
+                         (!progressive(v) || v->passes >= param_value(v, "pathtrace", "spp"))};
     if (r->shown) memcpy(r->shown, v->shown.rgb, n * sizeof(float));
     return true;
 }
