@@ -197,7 +197,8 @@ int lu_cmd_bench(int argc, char **argv) {
     for (int i = 0; i < nm && rc == LU_EXIT_OK; i++)
         if (!lu_method_find(methods[i])) rc = lu_cli_usage("bench", "no method named \"%s\"", methods[i]);
     for (int i = 0; i < nb && rc == LU_EXIT_OK; i++)
-        if (!lu_cli_parse_backend(backend_names[i], &backends[i])) rc = lu_cli_usage("bench", "--backends takes cpu,gpu,auto"); else backends[i] = lu_cli_resolve_backend("bench", backends[i], NULL);
+        if (!lu_cli_parse_backend(backend_names[i], &backends[i])) rc = lu_cli_usage("bench", "--backends takes cpu,gpu,auto");
+        else backends[i] = lu_cli_resolve_backend("bench", backends[i], NULL);
     if (rc == LU_EXIT_OK && lu_settings_validate(&settings, &err) != LU_OK) rc = lu_cli_error("bench", &err);
     if (rc == LU_EXIT_OK && img_dir) mkdir(img_dir, 0755);
     lu_scene scene;

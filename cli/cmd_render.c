@@ -61,7 +61,8 @@ int lu_cmd_render(int argc, char **argv) {
         } else if (strcmp(a, "--method") == 0 && has_next) {
             method = argv[++i];
         } else if (strcmp(a, "--backend") == 0 && has_next) {
-            if (!lu_cli_parse_backend(argv[++i], &backend)) rc = lu_cli_usage("render", "--backend takes cpu, gpu or auto");
+            if (!lu_cli_parse_backend(argv[++i], &backend))
+                rc = lu_cli_usage("render", "--backend takes cpu, gpu or auto");
         } else if (strcmp(a, "--set") == 0 && has_next) {
             if (lu_kv_parse_assignment(&settings, argv[++i], &err) != LU_OK) rc = lu_cli_error("render", &err);
         } else if (strcmp(a, "--size") == 0 && has_next) {

@@ -274,7 +274,8 @@ static bool has_moving_quality(const viewer *v) {
     const lu_method *m = current_method(v);
     double a[LU_MAX_PARAMS], b[LU_MAX_PARAMS];
     lu_error err;
-    if (progressive(v) || m->param_count > LU_MAX_PARAMS || lu_method_resolve_params(m, &v->settings, a, &err) != LU_OK ||
+    if (progressive(v) || m->param_count > LU_MAX_PARAMS ||
+        lu_method_resolve_params(m, &v->settings, a, &err) != LU_OK ||
         lu_method_resolve_params(m, &v->moving_settings, b, &err) != LU_OK)
         return false;
     return memcmp(a, b, (size_t)m->param_count * sizeof *a) != 0;
@@ -285,7 +286,8 @@ static lu_result kv_copy(lu_kvlist *dst, const lu_kvlist *src, lu_error *err) {
     lu_result r = LU_OK;
     for (int i = 0; i < src->count && r == LU_OK; i++) {
         const lu_kv *kv = &src->items[i];
-        r = kv->count ? lu_kv_set_number(dst, kv->key, kv->v, kv->count, err) : lu_kv_set_string(dst, kv->key, kv->str, err);
+        r = kv->count ? lu_kv_set_number(dst, kv->key, kv->v, kv->count, err)
+                      : lu_kv_set_string(dst, kv->key, kv->str, err);
     }
     return r;
 }
@@ -754,7 +756,8 @@ static bool stats_add(viewer *v, int frame, double ms, bool new_view) {
     stats_row *r = &v->rows[v->row_count++];
     size_t n = (size_t)v->width * v->height * 3;
     /* progressive methods get no rel_l2 (stats_compare), so nothing to keep */
-    *r = (stats_row){frame, ms, (double)v->img.width / v->width, progressive(v) ? NULL : malloc(n * sizeof(float)), -1.0,
+    *r = (stats_row){frame, ms, (double)v->img.width / v->width, progressive(v) ? NULL : malloc(n * sizeof(float)),
+                     -1.0,
                      v->img.width == v->width && v->img.height == v->height && v->quality == Q_FULL &&
                          (!progressive(v) || v->passes >= param_value(v, "pathtrace", "spp"))};
     if (r->shown) memcpy(r->shown, v->shown.rgb, n * sizeof(float));
@@ -811,7 +814,8 @@ static int cmp_double(const void *a, const void *b) {
  * `last_input` is the last scripted one; settle times add the ms of the
  * frames after it. */
 static void script_summary(const viewer *v, lu_view_script kind, int frames) {
-    double *ms = malloc((size_t)(frames > 0 ? frames : 1) * sizeof *ms), *sc = malloc((size_t)(frames > 0 ? frames : 1) * sizeof *sc);
+    size_t cap = (size_t)(frames > 0 ? frames : 1);
+    double *ms = malloc(cap * sizeof *ms), *sc = malloc(cap * sizeof *sc);
     int n = 0;
     for (int i = 0; ms && sc && i < v->row_count; i++)
         if (v->rows[i].frame >= 1 && v->rows[i].frame <= frames) {
@@ -1112,8 +1116,8 @@ int lu_cmd_view(int argc, char **argv) {
         if (!save_screenshot(w, h, shot, &err)) {
             rc = lu_cli_error("view", &err);
         } else {
-            fprintf(stderr, "lucent view: %s after %d frames of %s on %s (last %.1f ms)", shot, script ? shown_frames : frames,
-                    current_method(&v)->name, lu_backend_name(backend_for(&v)), v.last_ms);
+            fprintf(stderr, "lucent view: %s after %d frames of %s on %s (last %.1f ms)", shot,
+                    script ? shown_frames : frames, current_method(&v)->name, lu_backend_name(backend_for(&v)), v.last_ms);
             if (v.rel_l2 >= 0.0) fprintf(stderr, ", rel-L2 vs reference %.6g", v.rel_l2);
             fputc('\n', stderr);
             if (v.status[0]) rc = LU_EXIT_FAIL;

@@ -23,7 +23,8 @@ bool lu_view_script_check(const lu_scene *scene, lu_view_script kind, char *why,
         return false;
     }
     if (scene->lights[0].type == LU_LIGHT_ENVIRONMENT) {
-        snprintf(why, why_size, "the scene's first light is an environment light (it has no position or direction to turn)");
+        snprintf(why, why_size,
+                 "the scene's first light is an environment light (it has no position or direction to turn)");
         return false;
     }
     return true;
@@ -51,7 +52,8 @@ void lu_view_script_apply(lu_scene *scene, const lu_camera *camera0, const lu_li
         scene->camera.position = turn_about(camera0->position, pivot, u, a);
     } else if (kind == LU_VIEW_SCRIPT_LIGHT && light0 && scene->light_count > 0) {
         lu_light *l = &scene->lights[0];
-        if (l->type == LU_LIGHT_POINT || l->type == LU_LIGHT_SPOT) l->position = turn_about(light0->position, pivot, u, a);
+        if (l->type == LU_LIGHT_POINT || l->type == LU_LIGHT_SPOT)
+            l->position = turn_about(light0->position, pivot, u, a);
         if (l->type == LU_LIGHT_SPOT || l->type == LU_LIGHT_DIRECTIONAL) l->direction = turn(light0->direction, u, a);
     }
 }

@@ -437,7 +437,8 @@ bool lu_gpu_hardware_probe(char *why, size_t why_size) {
         }
     }
     if (!found)
-        snprintf(why, why_size, "%s%.300s", tried[0] ? "tried " : "EGL devices: ", tried[0] ? tried : cands->device_list);
+        snprintf(why, why_size, "%s%.300s", tried[0] ? "tried " : "EGL devices: ",
+                 tried[0] ? tried : cands->device_list);
     free(cands);
     if (cur_ctx != EGL_NO_CONTEXT) {
         eglBindAPI(api);
