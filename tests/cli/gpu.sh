@@ -17,6 +17,12 @@ scene=$src/scenes/smoke_glow.json
 grep -q "^version .*4\.[5-9]" "$tmp/info.txt" || { cat "$tmp/info.txt"; fail "no 4.5 version line"; }
 grep -q "^renderer " "$tmp/info.txt" || fail "no renderer line"
 grep -q "^max work groups" "$tmp/info.txt" || fail "no limits"
+# auto is the GPU exactly when a hardware context can be made
+if LUCENT_GPU=hardware "$lucent" info --gpu >/dev/null 2>&1; then
+  grep -q "^backend auto  *gpu" "$tmp/info.txt" || { cat "$tmp/info.txt"; fail "info: auto should be gpu"; }
+else
+  grep -q "^backend auto  *cpu (no hardware GPU)" "$tmp/info.txt" || { cat "$tmp/info.txt"; fail "info: auto should be cpu"; }
+fi
 LUCENT_GPU=software "$lucent" info --gpu | grep -q "(software)" || fail "LUCENT_GPU=software did not give a software renderer"
 
 # An unknown LUCENT_GPU value is an error naming the variable.
