@@ -1101,7 +1101,8 @@ int lu_cmd_view(int argc, char **argv) {
         }
         if (last_shot) break;
         if (script || render_now) glfwPollEvents();
-        else if ((v.scale < 1.0 || v.quality != Q_FULL) && !v.dragging && !v.dragging_light)
+        else if ((v.scale < 1.0 || v.quality != Q_FULL) && !v.dragging && !v.dragging_light && !v.status[0])
+            /* wake when the grace time ends, to refine */
             glfwWaitEventsTimeout(fmax(0.001, LU_VIEW_GRACE_S - (glfwGetTime() - v.last_input)));
         else glfwWaitEventsTimeout(0.25);
     }

@@ -1,6 +1,8 @@
 /* Headless OpenGL 4.5 core context through EGL: enumerate EGL devices
  * (EGL_EXT_device_enumeration + EGL_EXT_platform_device), prefer hardware
- * ones, fall back to Mesa's surfaceless platform; GL entry points via libepoxy. */
+ * ones, fall back to Mesa's surfaceless platform; GL entry points via libepoxy.
+ * lu_gpu_hardware_probe answers, for LU_BACKEND_AUTO, whether a hardware
+ * device is there, from the same candidate list. */
 #ifdef LU_HAVE_GPU
 #include "backends/gpu/gpu_internal.h"
 
