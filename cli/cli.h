@@ -27,8 +27,12 @@ int lu_cli_usage(const char *cmd, const char *fmt, ...)
 bool lu_cli_is_help(const char *arg);
 /* Parses "WxH". */
 bool lu_cli_parse_size(const char *s, int *w, int *h);
-/* Parses "cpu" / "gpu". */
+/* Parses "cpu" / "gpu" / "auto" (LU_BACKEND_AUTO). */
 bool lu_cli_parse_backend(const char *s, lu_backend *b);
+/* The backend --backend b means for method m (NULL: for whichever method, as
+ * a list of backends needs): lu_backend_resolve, plus one note line on stderr
+ * (once per process) when auto falls to the CPU for want of a hardware GPU. */
+lu_backend lu_cli_resolve_backend(const char *cmd, lu_backend b, const lu_method *m);
 /* Loads a scene and applies --size overrides. */
 int lu_cli_load_scene(const char *cmd, const char *path, int width, int height, lu_scene *scene);
 /* Lists every method, its backends and parameters (for --help texts). */

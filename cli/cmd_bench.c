@@ -20,7 +20,8 @@ static void usage(void) {
            "\n"
            "options:\n"
            "  --methods LIST      comma-separated methods (default: the swept methods, else reference)\n"
-           "  --backends LIST     cpu, gpu or cpu,gpu (default: cpu); methods skip backends they lack\n"
+           "  --backends LIST     cpu, gpu, auto or cpu,gpu (default: cpu; auto: a hardware GPU, else\n"
+           "                      the CPU); methods skip backends they lack\n"
            "  --frames N          timed frames per row (default 5 still, 8 for a motion; reference: 1)\n"
            "  --warmup N          untimed frames first (default 1; the reference method: 0)\n"
            "  --size WxH          override the camera's image size\n"
@@ -641,9 +642,12 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
     if (o->nmethods == 0) return lu_cli_usage("bench", "--methods is empty");
     for (int i = 0; i < o->nmethods; i++)
         if (!lu_method_find(o->methods[i])) return lu_cli_usage("bench", "no method named \"%s\"", o->methods[i]);
-    if (o->nbackends == 0 || o->nbackends > 2) return lu_cli_usage("bench", "--backends takes cpu,gpu");
-    for (int i = 0; i < o->nbackends; i++)
-        if (!lu_cli_parse_backend(bnames[i], &o->backends[i])) return lu_cli_usage("bench", "--backends takes cpu,gpu");
+    if (o->nbackends == 0 || o->nbackends > 2) return lu_cli_usage("bench", "--backends takes cpu,gpu,auto");
+    for (int i = 0; i < o->nbackends; i++) {
+        if (!lu_cli_parse_backend(bnames[i], &o->backends[i]))
+            return lu_cli_usage("bench", "--backends takes cpu,gpu,auto");
+        o->backends[i] = lu_cli_resolve_backend("bench", o->backends[i], NULL);
+    }
     for (int i = 0; i < o->nsweeps; i++) {
         bool listed = false;
         for (int j = 0; j < o->nmethods; j++) listed = listed || strcmp(o->methods[j], o->sweeps[i].method) == 0;

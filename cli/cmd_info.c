@@ -120,6 +120,10 @@ static int print_gpu(lu_gpu_device_pref pref) {
            in.max_work_group_size[1], in.max_work_group_size[2], in.max_work_group_invocations);
     printf("max shared memory     %d bytes\n", in.max_shared_memory);
     printf("context creation      %.3f s\n", in.create_seconds);
+    const char *why;
+    lu_backend b = lu_backend_auto(&why);
+    printf("backend auto          %s (%s)\n", lu_backend_name(b), b == LU_BACKEND_GPU ? why : "no hardware GPU");
+    if (b != LU_BACKEND_GPU) printf("                      %s\n", why);
     lu_gpu_context_destroy(ctx);
     return LU_EXIT_OK;
 }

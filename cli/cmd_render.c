@@ -10,9 +10,10 @@ static void usage(void) {
            "\n"
            "options:\n"
            "  --method M          rendering method (default: reference; see `lucent methods`)\n"
-           "  --backend cpu|gpu|auto  where it runs (default: cpu); auto: the GPU when the\n"
-           "                      method has a GPU path and a context can be made, else the\n"
-           "                      CPU with a note (gpu: an error when there is no GPU).\n"
+           "  --backend cpu|gpu|auto  where it runs (default: cpu); auto: a hardware GPU when\n"
+           "                      there is one and the method has a GPU path, else the CPU\n"
+           "                      (with a note); gpu forces the GPU backend, a software\n"
+           "                      rasteriser (llvmpipe) included, and fails without one.\n"
            "                      LUCENT_GPU=auto|hardware|software picks the GPU device kind\n"
            "  --set M.P=V         set parameter P of method M (repeatable), e.g. --set reference.spp=4\n"
            "  --size WxH          override the camera's image size\n"
@@ -45,7 +46,6 @@ static void save_partial(void *user, const lu_image *partial, int done, int tota
 int lu_cmd_render(int argc, char **argv) {
     const char *scene_path = NULL, *out_path = NULL, *method = "reference";
     lu_backend backend = LU_BACKEND_CPU;
-    bool backend_auto = false;
     lu_kvlist settings = {0};
     lu_image_save_desc save = {0};
     int width = 0, height = 0, progressive_every = 0;
@@ -61,12 +61,8 @@ int lu_cmd_render(int argc, char **argv) {
         } else if (strcmp(a, "--method") == 0 && has_next) {
             method = argv[++i];
         } else if (strcmp(a, "--backend") == 0 && has_next) {
-            if (strcmp(argv[i + 1], "auto") == 0) {
-                backend_auto = true;
-                i++;
-            } else if (!lu_cli_parse_backend(argv[++i], &backend)) {
+            if (!lu_cli_parse_backend(argv[++i], &backend))
                 rc = lu_cli_usage("render", "--backend takes cpu, gpu or auto");
-            }
         } else if (strcmp(a, "--set") == 0 && has_next) {
             if (lu_kv_parse_assignment(&settings, argv[++i], &err) != LU_OK) rc = lu_cli_error("render", &err);
         } else if (strcmp(a, "--size") == 0 && has_next) {
@@ -113,13 +109,13 @@ int lu_cmd_render(int argc, char **argv) {
     lu_renderer *r = NULL;
     lu_image img = {0};
     progressive_sink sink = {out_path, &save};
-    if (backend_auto) {
-        const lu_method *m = lu_method_find(method);
-        backend = m && (m->backends & LU_BACKEND_GPU) ? LU_BACKEND_GPU : LU_BACKEND_CPU;
-    }
+    bool backend_auto = backend == LU_BACKEND_AUTO;
+    backend = lu_cli_resolve_backend("render", backend, lu_method_find(method));
     lu_result cr = lu_renderer_create(method, &scene, &settings, backend, &r, &err);
-    if (cr == LU_ERR_BACKEND && backend_auto) {
-        fprintf(stderr, "lucent render: note: no GPU (%s); rendering on the CPU\n", err.message);
+    if (cr == LU_ERR_BACKEND && backend_auto && backend == LU_BACKEND_GPU) {
+        /* the hardware device answered the probe but this method's context failed */
+        fprintf(stderr, "lucent render: note: --backend auto: the GPU failed (%s); rendering on the CPU\n",
+                err.message);
         backend = LU_BACKEND_CPU;
         cr = lu_renderer_create(method, &scene, &settings, backend, &r, &err);
     }

@@ -5,6 +5,15 @@
  * (src/viewer/lu_font.h), progressive accumulation for Monte Carlo methods,
  * and --screenshot FILE --frames N for scripted use (tests under Xvfb).
  *
+ * A frame budget (--budget, 33 ms): while the user interacts, frames are
+ * rendered at a resolution scale chosen from the measured cost of the last
+ * frames so that a frame fits the budget, and upsampled bilinearly to the
+ * window; when input stops the scale doubles frame by frame back to 1, and
+ * that last frame is the method's full image, as `lucent render` gives it.
+ * --script orbit|light --frames N --stats FILE.csv plays a scripted
+ * interaction and records every frame (ms, scale, rel-L2 of the frames that
+ * show the final view against a fresh renderer's full image of it).
+ *
  * The image is rendered by the method (CPU or its GPU path on its own
  * headless EGL context), tone mapped exactly as `lucent render -o x.png`
  * does (sRGB curve after 2^exposure), overlaid, and drawn with glDrawPixels
@@ -16,6 +25,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "view_script.h"
 #include "viewer/lu_font.h"
 
 static void usage(void) {
@@ -23,15 +33,35 @@ static void usage(void) {
            "\n"
            "options:\n"
            "  --method M          method shown first (default: raymarch; Tab cycles through all)\n"
-           "  --backend cpu|gpu   where methods run (default: gpu; a method without a GPU path\n"
-           "                      runs on the CPU); LUCENT_GPU=auto|hardware|software picks the device\n"
+           "  --backend cpu|gpu|auto  where methods run (default: auto: a hardware GPU when there\n"
+           "                      is one, else the CPU; gpu forces the GPU backend, llvmpipe\n"
+           "                      included; a method without a GPU path runs on the CPU);\n"
+           "                      LUCENT_GPU=auto|hardware|software picks the GPU device\n"
+           "  --budget MS         frame budget while interacting (default 33): frames are\n"
+           "                      rendered at a reduced resolution that fits it and upsampled\n"
+           "                      (bilinear); when input stops the resolution doubles per frame\n"
+           "                      back to full, which is the image `lucent render` gives\n"
+           "  --moving-set M.P=V  settings of the frames rendered while moving (repeatable;\n"
+           "                      default afm.map_res=64 afm.samples=16 afm.steps=100; `none`\n"
+           "                      drops the defaults); after the resolution, the quality\n"
+           "                      refines to --set's\n"
            "  --set M.P=V         method parameters, as for render (repeatable)\n"
            "  --size WxH          image and window size (default: the scene camera's)\n"
            "  --exposure E        scale by 2^E before the sRGB curve (default 0)\n"
            "  --no-overlay        start with the overlay hidden\n"
            "  --compare           render the reference first (as key C does)\n"
            "  --screenshot FILE   render --frames frames, save the window's last frame (PNG), exit\n"
-           "  --frames N          frames to render with --screenshot (default 1)\n"
+           "                      (with --script: after the settle)\n"
+           "  --frames N          frames to render with --screenshot (default 1), or the\n"
+           "                      scripted frames with --script (default 8)\n"
+           "  --script orbit|light  play a scripted interaction and exit: each frame the camera\n"
+           "                      (orbit) or the first light (light) turns 4 degrees about the\n"
+           "                      camera's up axis through its look-at point; after the N\n"
+           "                      frames it renders with no input until the full image is\n"
+           "                      shown (at most 60 s), then prints a summary line\n"
+           "  --stats FILE.csv    one row per frame: frame,ms,scale,rel_l2 (frame 0: the start\n"
+           "                      view; rel_l2: of the frames showing the final view, against a\n"
+           "                      fresh renderer's full image of it; empty for the others)\n"
            "\n"
            "controls:\n"
            "  left drag           orbit the camera around its look-at point\n"
@@ -79,6 +109,36 @@ static const struct {
     const char *method, *param;
 } k_knobs[] = {{"raymarch", "steps"}, {"bssrdf", "splats"}, {"reference", "steps"}, {"pathtrace", "spp"}};
 
+/* After the last input, frames keep the reduced scale for this long before
+ * refining, so a pause between key repeats or mouse events does not start a
+ * full-resolution frame that would hold up the next one. */
+#define LU_VIEW_GRACE_S 0.15
+/* A scripted run stops refining this long after its last input. */
+#define LU_VIEW_SETTLE_CAP_S 60.0
+/* Settings of the frames rendered while moving (besides the lower
+ * resolution), where a method's defaults spend far more than a moving image
+ * needs: afm rebuilds its attenuation maps every frame, and at 64² texels and
+ * 16 samples per texel they cost about a tenth; 100 view steps instead of
+ * 500 a fifth of the march (docs/gpu.md, the viewer).
+ * --moving-set adds to them, --moving-set none drops them. */
+static const struct {
+    const char *key;
+    double value;
+} k_moving[] = {{"afm.map_res", 64}, {"afm.samples", 16}, {"afm.steps", 100}};
+
+/* Trailing frames of one view kept for --stats' rel-L2. */
+#define LU_VIEW_STATS_KEEP 64
+
+typedef struct stats_row {
+    int frame;
+    double ms, scale;
+    float *shown;              /* the window-size linear image, while it shows the final view */
+    double rel_l2;             /* < 0: not available */
+    bool full;                 /* the full image: scale 1 at full quality (progressive: all passes) */
+} stats_row;
+
+enum { Q_FULL = 0, Q_MOVING = 1 };
+
 typedef struct viewer {
     lu_scene scene;
     lu_camera cam0;            /* as loaded, for R */
@@ -86,12 +146,17 @@ typedef struct viewer {
     const char *scene_path;
     lu_backend want_backend;
     lu_kvlist settings;
+    lu_kvlist moving_settings; /* settings + k_moving + --moving-set */
     int method_index;
+    lu_renderer *rq[2];        /* per quality (Q_FULL, Q_MOVING); r is the one used last */
     lu_renderer *r;
     bool need_create;          /* method, knob or light changed: prepare again */
-    bool dirty;                /* the image must be rendered again */
-    lu_image img;
-    float *accum;              /* progressive: sum of passes */
+    bool dirty;                /* the view changed: the image must be rendered again */
+    int width, height;         /* the window and the full image */
+    lu_image img;              /* the last render, at the render size (scale x window) */
+    lu_image shown;            /* img upsampled to the window (linear) */
+    struct tap *cols;          /* upsampling: the source columns of each window column */
+    float *accum;              /* progressive: sum of passes (at the render size) */
     int passes;
     uint8_t *rgb;              /* displayed image, top row first */
     float exposure;
@@ -104,11 +169,23 @@ typedef struct viewer {
     bool dragging, dragging_light;
     double mx, my;
     char status[256];          /* last error, shown in the overlay */
+    /* the frame budget */
+    double budget_ms;
+    double scale;              /* of the image shown (render width / window width) */
+    int quality;               /* of the image shown: Q_FULL or Q_MOVING */
+    double cost_px_ms[2];      /* per quality: render ms per pixel, smoothed over the last frames */
+    double overhead_ms[2];     /* frame ms outside the method's render, smoothed */
+    bool have_cost[2];
+    double last_input;         /* glfwGetTime() of the last change of the view */
     /* live error: the reference rendered (key C) for one camera and set of lights */
     lu_image ref;
     lu_camera ref_cam;
     lu_light *ref_lights;
     double rel_l2;             /* of the shown image against ref; < 0: none or stale */
+    /* --stats */
+    stats_row *rows;
+    int row_count, row_cap;
+    int view_first_row;        /* first row showing the current view */
 } viewer;
 
 static viewer *g_v;            /* GLFW callbacks reach the viewer through this */
@@ -125,6 +202,7 @@ static bool progressive(const viewer *v) { return strcmp(current_method(v)->name
 
 static lu_backend backend_for(const viewer *v) {
     const lu_method *m = current_method(v);
+    if (v->want_backend == LU_BACKEND_AUTO) return lu_backend_resolve(LU_BACKEND_AUTO, m);
     return (m->backends & v->want_backend) ? v->want_backend : LU_BACKEND_CPU;
 }
 
@@ -139,17 +217,107 @@ static double param_value(const viewer *v, const char *method, const char *param
     return 0;
 }
 
+/* Every change of what is shown goes through here: it is also the input
+ * that the frame budget reacts to. */
 static void reset_accumulation(viewer *v) {
     v->passes = 0;
     v->dirty = true;
+    v->last_input = glfwGetTime();
+}
+
+/* ---- the frame budget ---- */
+
+static int scaled(int full, double s) {
+    long n = lround(full * s);
+    return n < 1 ? 1 : n > full ? full : (int)n;
+}
+
+/* The smallest scale: 1/16, or 4 pixels on the short side if that is more. */
+static double min_scale(const viewer *v) {
+    int short_side = v->width < v->height ? v->width : v->height;
+    return fmin(1.0, fmax(1.0 / 16.0, 4.0 / short_side));
+}
+
+/* The scale whose frame at quality q is predicted to fit the budget: frame ms = overhead
+ * + render ms, render ms = cost per pixel x pixels. Changes under 10 % are
+ * ignored so the render size (and the methods' buffers) stays put. */
+static double budget_scale(const viewer *v, int q) {
+    /* no measurement yet: the full quality keeps its scale (1 at start), the
+     * moving quality starts small and grows from its first measured frame */
+    if (!v->have_cost[q]) return q == Q_FULL ? v->scale : min_scale(v);
+    double avail = fmax(v->budget_ms - v->overhead_ms[q], 0.25 * v->budget_ms);
+    double s = sqrt(avail / (fmax(v->cost_px_ms[q], 1e-12) * v->width * v->height));
+    s = fmin(1.0, fmax(min_scale(v), s));
+    if (fabs(s - v->scale) < 0.1 * v->scale) s = v->scale;
+    return s;
+}
+
+/* Folds one frame into the cost model: half the weight on the newest frame,
+ * so a change of method or view cost is followed within a few frames. */
+static void update_cost(viewer *v, double render_ms, double frame_ms) {
+    int q = v->quality;
+    double px = (double)v->img.width * v->img.height;
+    double c = render_ms / px, o = fmax(0.0, frame_ms - render_ms);
+    if (!v->have_cost[q]) {
+        v->cost_px_ms[q] = c;
+        v->overhead_ms[q] = o;
+        v->have_cost[q] = true;
+    } else {
+        v->cost_px_ms[q] = 0.5 * (v->cost_px_ms[q] + c);
+        v->overhead_ms[q] = 0.5 * (v->overhead_ms[q] + o);
+    }
+}
+
+/* Whether the current method renders differently under the moving settings
+ * (progressive methods never do: their passes restart on every change). */
+static bool has_moving_quality(const viewer *v) {
+    const lu_method *m = current_method(v);
+    double a[LU_MAX_PARAMS], b[LU_MAX_PARAMS];
+    lu_error err;
+    if (progressive(v) || m->param_count > LU_MAX_PARAMS ||
+        lu_method_resolve_params(m, &v->settings, a, &err) != LU_OK ||
+        lu_method_resolve_params(m, &v->moving_settings, b, &err) != LU_OK)
+        return false;
+    return memcmp(a, b, (size_t)m->param_count * sizeof *a) != 0;
+}
+
+/* dst gets every entry of src (later entries replace earlier ones). */
+static lu_result kv_copy(lu_kvlist *dst, const lu_kvlist *src, lu_error *err) {
+    lu_result r = LU_OK;
+    for (int i = 0; i < src->count && r == LU_OK; i++) {
+        const lu_kv *kv = &src->items[i];
+        r = kv->count ? lu_kv_set_number(dst, kv->key, kv->v, kv->count, err)
+                      : lu_kv_set_string(dst, kv->key, kv->str, err);
+    }
+    return r;
+}
+
+static void destroy_renderers(viewer *v) {
+    for (int q = 0; q < 2; q++) {
+        if (v->rq[q] == v->r) v->r = NULL;
+        lu_renderer_destroy(v->rq[q]);
+        v->rq[q] = NULL;
+    }
+    lu_renderer_destroy(v->r);
+    v->r = NULL;
 }
 
 /* (Re)creates the renderer when needed and renders one frame (one more pass
- * for progressive methods) into v->img. */
+ * for progressive methods) at scale v->scale and quality v->quality into
+ * v->img. */
 static bool render_frame(viewer *v) {
     lu_error err = {0};
     const lu_method *m = current_method(v);
     bool prog = progressive(v);
+    lu_scene at = v->scene;
+    at.camera.width = scaled(v->width, v->scale);
+    at.camera.height = scaled(v->height, v->scale);
+    if (v->img.width != at.camera.width || v->img.height != at.camera.height) {
+        lu_image_destroy(&v->img);
+        memset(&v->img, 0, sizeof v->img);
+        if (lu_image_create(&v->img, at.camera.width, at.camera.height, &err) != LU_OK) goto fail;
+        v->passes = 0;
+    }
     if (prog) {
         /* One pass per frame with a new seed; the viewer averages them. */
         lu_kvlist s = {0};
@@ -165,19 +333,26 @@ static bool render_frame(viewer *v) {
         double one = 1, seed = 1 + v->passes;
         lu_kv_set_number(&s, "pathtrace.spp", &one, 1, &err);
         lu_kv_set_number(&s, "pathtrace.seed", &seed, 1, &err);
-        lu_renderer_destroy(v->r);
-        v->r = NULL;
-        lu_result rc = lu_renderer_create(m->name, &v->scene, &s, backend_for(v), &v->r, &err);
+        destroy_renderers(v);
+        lu_result rc = lu_renderer_create(m->name, &at, &s, backend_for(v), &v->r, &err);
         lu_kv_free(&s);
         if (rc != LU_OK) goto fail;
-    } else if (v->need_create || !v->r) {
-        lu_renderer_destroy(v->r);
-        v->r = NULL;
-        if (lu_renderer_create(m->name, &v->scene, &v->settings, backend_for(v), &v->r, &err) != LU_OK) goto fail;
+    } else {
+        if (v->need_create)
+            for (int q = 0; q < 2; q++) {
+                lu_renderer_destroy(v->rq[q]);
+                v->rq[q] = NULL;
+            }
+        v->need_create = false;
+        int q = v->quality;
+        if (!v->rq[q] && lu_renderer_create(m->name, &at, q == Q_MOVING ? &v->moving_settings : &v->settings,
+                                            backend_for(v), &v->rq[q], &err) != LU_OK)
+            goto fail;
+        v->r = v->rq[q];
     }
     v->need_create = false;
     v->prepare_ms = v->r->prepare_ms;
-    if (lu_renderer_render(v->r, &v->scene, &v->img, &err) != LU_OK) goto fail;
+    if (lu_renderer_render(v->r, &at, &v->img, &err) != LU_OK) goto fail;
     v->last_ms = v->r->last_render_ms + (prog ? v->r->prepare_ms : 0.0);
     size_t n = (size_t)v->img.width * v->img.height * 3;
     if (prog) {
@@ -198,6 +373,97 @@ fail:
     v->dirty = false;
     v->need_create = true;
     return false;
+}
+
+/* ---- upsampling and tone mapping ---- */
+
+/* Bilinear: window pixel centre x maps to (x + 0.5) * rw / W - 0.5 in the
+ * render image, clamped at the edges; at scale 1 it is a copy. */
+typedef struct tap {
+    int a, b;                  /* the two source pixels */
+    float t;                   /* weight of b */
+} tap;
+
+static tap tap_at(int i, int src, int dst) {
+    double f = (i + 0.5) * src / dst - 0.5;
+    int a = (int)floor(f);
+    tap p = {a, a + 1, (float)(f - a)};
+    if (a < 0) p.a = p.b = 0, p.t = 0.0f;
+    if (p.b > src - 1) p.b = src - 1;
+    return p;
+}
+
+static void upsample_rows(void *ctx, int64_t y0, int64_t y1, int thread) {
+    (void)thread;
+    viewer *v = ctx;
+    const lu_image *src = &v->img;
+    int sw = src->width, W = v->width;
+    for (int64_t y = y0; y < y1; y++) {
+        float *dst = v->shown.rgb + (size_t)y * W * 3;
+        tap ty = tap_at((int)y, src->height, v->height);
+        const float *ra = src->rgb + (size_t)ty.a * sw * 3, *rb = src->rgb + (size_t)ty.b * sw * 3;
+        for (int x = 0; x < W; x++) {
+            const tap *tx = &v->cols[x];
+            for (int c = 0; c < 3; c++) {
+                float top = ra[tx->a * 3 + c] + tx->t * (ra[tx->b * 3 + c] - ra[tx->a * 3 + c]);
+                float bot = rb[tx->a * 3 + c] + tx->t * (rb[tx->b * 3 + c] - rb[tx->a * 3 + c]);
+                dst[x * 3 + c] = top + ty.t * (bot - top);
+            }
+        }
+    }
+}
+
+static void upsample(viewer *v) {
+    if (v->img.width == v->width && v->img.height == v->height) {
+        memcpy(v->shown.rgb, v->img.rgb, (size_t)v->width * v->height * 3 * sizeof(float));
+        return;
+    }
+    for (int x = 0; x < v->width; x++) v->cols[x] = tap_at(x, v->img.width, v->width);
+    lu_parallel_for(v->height, 8, upsample_rows, v, NULL);
+}
+
+typedef struct tone_job {
+    viewer *v;
+    float gain;
+} tone_job;
+
+/* The byte the PNG writer (lu_image_save) makes of a linear value. */
+static uint8_t tone_byte(float x) {
+    float e = lu_srgb_encode(x);
+    return (uint8_t)lrintf(255.0f * (e < 1.0f ? e : 1.0f));
+}
+
+/* tone_byte by the top 16 bits of the float: every float sharing them gives
+ * the byte stored, or 0xFFFF where the bucket's two ends differ (then it is
+ * computed). Exact because tone_byte does not decrease with the value: checked
+ * over every float from 0 to 16 (above, it is 255), so equal ends mean
+ * a constant bucket (negatives and NaN give 0 at both ends). A window
+ * frame tone maps 3 values per pixel; powf on each cost as much as a cheap
+ * method's moving frame. */
+static uint16_t g_tone_lut[65536];
+
+static void tone_lut_init(void) {
+    for (uint32_t i = 0; i < 65536; i++) {
+        uint32_t lo = i << 16, hi = lo | 0xFFFFu;
+        float a, b;
+        memcpy(&a, &lo, sizeof a);
+        memcpy(&b, &hi, sizeof b);
+        uint8_t ta = tone_byte(a), tb = tone_byte(b);
+        g_tone_lut[i] = ta == tb ? ta : 0xFFFF;
+    }
+}
+
+static void tone_rows(void *ctx, int64_t y0, int64_t y1, int thread) {
+    (void)thread;
+    const tone_job *j = ctx;
+    size_t row = (size_t)j->v->width * 3;
+    for (size_t i = (size_t)y0 * row; i < (size_t)y1 * row; i++) {
+        float x = j->v->shown.rgb[i] * j->gain;
+        uint32_t bits;
+        memcpy(&bits, &x, sizeof bits);
+        uint16_t t = g_tone_lut[bits >> 16];
+        j->v->rgb[i] = t != 0xFFFF ? (uint8_t)t : tone_byte(x);
+    }
 }
 
 /* True when the cached reference was rendered for the current view and lights. */
@@ -231,17 +497,14 @@ static void update_error(viewer *v) {
     v->rel_l2 = -1.0;
     lu_metrics m;
     lu_error err;
-    if (ref_current(v) && lu_image_compare(&v->img, &v->ref, &m, &err) == LU_OK) v->rel_l2 = m.rel_l2;
+    if (ref_current(v) && lu_image_compare(&v->shown, &v->ref, &m, &err) == LU_OK) v->rel_l2 = m.rel_l2;
 }
 
-/* Tone maps like the PNG writer (lu_image_save), then draws the overlay. */
+/* Tone maps the shown image, then draws the overlay. */
 static void compose(viewer *v) {
-    int w = v->img.width, h = v->img.height;
-    float gain = exp2f(v->exposure);
-    for (size_t i = 0; i < (size_t)w * h * 3; i++) {
-        float e = lu_srgb_encode(v->img.rgb[i] * gain);
-        v->rgb[i] = (uint8_t)lrintf(255.0f * (e < 1.0f ? e : 1.0f));
-    }
+    int w = v->width, h = v->height;
+    tone_job job = {v, exp2f(v->exposure)};
+    lu_parallel_for(h, 16, tone_rows, &job, NULL);
     if (!v->overlay) return;
     int scale;
     char lines[5][160];
@@ -259,9 +522,10 @@ static void compose(viewer *v) {
     snprintf(lines[2], sizeof lines[2], "spp %d%s  exposure %+.1f", v->passes, knob, v->exposure);
     const lu_light *l = v->scene.light_count ? &v->scene.lights[v->light] : NULL;
     static const char *const kinds[] = {"point", "spot", "directional", "environment"};
-    snprintf(lines[3], sizeof lines[3], "light %d/%d %s  %dx%d", v->scene.light_count ? v->light + 1 : 0,
-             v->scene.light_count, l ? kinds[l->type] : "-", w, h);
-    snprintf(lines[4], sizeof lines[4], "%s", v->status[0] ? v->status : "tab method  +/- quality  arrows light  h hide");
+    snprintf(lines[3], sizeof lines[3], "light %d/%d %s  %dx%d  scale %.2f%s  budget %.0f ms",
+             v->scene.light_count ? v->light + 1 : 0, v->scene.light_count, l ? kinds[l->type] : "-", v->img.width,
+             v->img.height, v->scale, v->quality == Q_MOVING ? " moving quality" : "", v->budget_ms);
+    snprintf(lines[4], sizeof lines[4], "%.159s", v->status[0] ? v->status : "tab method  +/- quality  arrows light  h hide");
     int bw = 0;
     for (int i = 0; i < 5; i++) {
         int tw = lu_font_text_width(lines[i], 1);
@@ -288,7 +552,7 @@ static void draw(GLFWwindow *win, viewer *v) {
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
     glPixelZoom(1.0f, -1.0f);
     glWindowPos2i(0, fh);
-    glDrawPixels(v->img.width, v->img.height, GL_RGB, GL_UNSIGNED_BYTE, v->rgb);
+    glDrawPixels(v->width, v->height, GL_RGB, GL_UNSIGNED_BYTE, v->rgb);
     glPixelZoom(1.0f, 1.0f);
 }
 
@@ -376,11 +640,11 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
     case GLFW_KEY_DOWN: move_light(v, 0, -a); break;
     case GLFW_KEY_L:
         if (v->scene.light_count) v->light = (v->light + 1) % v->scene.light_count;
-        v->dirty = true;
         break;
     case GLFW_KEY_TAB:
         v->method_index = (v->method_index + ((mods & GLFW_MOD_SHIFT) ? n - 1 : 1)) % n;
         v->need_create = true;
+        v->have_cost[Q_FULL] = v->have_cost[Q_MOVING] = false;   /* another method: its own cost */
         reset_accumulation(v);
         break;
     case GLFW_KEY_EQUAL:
@@ -465,14 +729,140 @@ static GLFWwindow *open_window(int w, int h, const char *title) {
     return glfwCreateWindow(w, h, title, NULL, NULL);
 }
 
+/* ---- --stats ---- */
+
+/* A row per frame; the frame's image is kept while it shows the view of the
+ * last rows (a new view drops the older images: they can never be compared
+ * against the final view). */
+static bool stats_add(viewer *v, int frame, double ms, bool new_view) {
+    if (v->row_count == v->row_cap) {
+        int cap = v->row_cap ? 2 * v->row_cap : 64;
+        stats_row *rows = realloc(v->rows, (size_t)cap * sizeof *rows);
+        if (!rows) return false;
+        v->rows = rows;
+        v->row_cap = cap;
+    }
+    if (new_view) {
+        for (int i = v->view_first_row; i < v->row_count; i++) {
+            free(v->rows[i].shown);
+            v->rows[i].shown = NULL;
+        }
+        v->view_first_row = v->row_count;
+    }
+    if (v->row_count - LU_VIEW_STATS_KEEP >= v->view_first_row) {
+        free(v->rows[v->row_count - LU_VIEW_STATS_KEEP].shown);
+        v->rows[v->row_count - LU_VIEW_STATS_KEEP].shown = NULL;
+    }
+    stats_row *r = &v->rows[v->row_count++];
+    size_t n = (size_t)v->width * v->height * 3;
+    /* progressive methods get no rel_l2 (stats_compare), so nothing to keep */
+    *r = (stats_row){frame, ms, (double)v->img.width / v->width, progressive(v) ? NULL : malloc(n * sizeof(float)),
+                     -1.0,
+                     v->img.width == v->width && v->img.height == v->height && v->quality == Q_FULL &&
+                         (!progressive(v) || v->passes >= param_value(v, "pathtrace", "spp"))};
+    if (r->shown) memcpy(r->shown, v->shown.rgb, n * sizeof(float));
+    return true;
+}
+
+/* The truth for the final view: a fresh renderer (same method, settings and
+ * backend) renders it at full size, as `lucent render` would. Deterministic
+ * methods only: a progressive method's passes have no single full image. */
+static void stats_compare(viewer *v) {
+    if (progressive(v) || v->row_count == 0) return;
+    lu_error err = {0};
+    lu_renderer *r = NULL;
+    lu_image full = {0}, frame = {0};
+    lu_result rc = lu_renderer_create(current_method(v)->name, &v->scene, &v->settings, backend_for(v), &r, &err);
+    if (rc == LU_OK) rc = lu_renderer_render(r, &v->scene, &full, &err);
+    lu_renderer_destroy(r);
+    if (rc == LU_OK) rc = lu_image_create(&frame, v->width, v->height, &err);
+    if (rc != LU_OK) {
+        fprintf(stderr, "lucent view: --stats: no full image of the final view: %s\n", err.message);
+    } else {
+        size_t n = (size_t)v->width * v->height * 3;
+        for (int i = v->view_first_row; i < v->row_count; i++) {
+            lu_metrics m;
+            if (!v->rows[i].shown) continue;
+            memcpy(frame.rgb, v->rows[i].shown, n * sizeof(float));
+            if (lu_image_compare(&frame, &full, &m, &err) == LU_OK) v->rows[i].rel_l2 = m.rel_l2;
+        }
+    }
+    lu_image_destroy(&full);
+    lu_image_destroy(&frame);
+}
+
+static bool stats_write(const viewer *v, const char *path, lu_error *err) {
+    lu_atomic_file f;
+    if (lu_atomic_open(&f, path, err) != LU_OK) return false;
+    FILE *fp = f.fp;
+    fprintf(fp, "frame,ms,scale,rel_l2\n");
+    for (int i = 0; i < v->row_count; i++) {
+        const stats_row *r = &v->rows[i];
+        fprintf(fp, "%d,%.3f,%.4f,", r->frame, r->ms, r->scale);
+        if (r->rel_l2 >= 0.0) fprintf(fp, "%.6g", r->rel_l2);
+        fputc('\n', fp);
+    }
+    return lu_atomic_commit(&f, err) == LU_OK;
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* One line: the moving frames' median, the settle, the final error. Frame
+ * `last_input` is the last scripted one; settle times add the ms of the
+ * frames after it. */
+static void script_summary(const viewer *v, lu_view_script kind, int frames) {
+    size_t cap = (size_t)(frames > 0 ? frames : 1);
+    double *ms = malloc(cap * sizeof *ms), *sc = malloc(cap * sizeof *sc);
+    int n = 0;
+    for (int i = 0; ms && sc && i < v->row_count; i++)
+        if (v->rows[i].frame >= 1 && v->rows[i].frame <= frames) {
+            ms[n] = v->rows[i].ms;
+            sc[n++] = v->rows[i].scale;
+        }
+    if (n == 0) {
+        free(ms);
+        free(sc);
+        return;
+    }
+    qsort(ms, (size_t)n, sizeof *ms, cmp_double);
+    qsort(sc, (size_t)n, sizeof *sc, cmp_double);
+    double med = n % 2 ? ms[n / 2] : 0.5 * (ms[n / 2 - 1] + ms[n / 2]);
+    double med_scale = n % 2 ? sc[n / 2] : 0.5 * (sc[n / 2 - 1] + sc[n / 2]);
+    double settle = 0.0, within2 = -1.0, full = -1.0;
+    const stats_row *last = &v->rows[v->row_count - 1];
+    for (int i = 0; i < v->row_count; i++) {
+        const stats_row *r = &v->rows[i];
+        if (r->frame < frames) continue;
+        if (r->frame > frames) settle += r->ms;
+        if (within2 < 0.0 && r->rel_l2 >= 0.0 && r->rel_l2 <= 0.02) within2 = settle;
+        if (full < 0.0 && r->full) full = settle;
+    }
+    fprintf(stderr, "lucent view: script %s, %d frames of %s on %s: median %.1f ms (%.1f fps) at median scale %.3g; ",
+            lu_view_script_name(kind), frames, current_method(v)->name, lu_backend_name(backend_for(v)), med,
+            1e3 / med, med_scale);
+    if (full >= 0.0) fprintf(stderr, "full image %.0f ms after the last input", full);
+    else fprintf(stderr, "full image not reached");
+    if (within2 >= 0.0) fprintf(stderr, ", within 2 %% of a fresh render after %.0f ms", within2);
+    if (last->rel_l2 >= 0.0) fprintf(stderr, ", last frame rel-L2 %.3g", last->rel_l2);
+    fputc('\n', stderr);
+    free(ms);
+    free(sc);
+}
+
 int lu_cmd_view(int argc, char **argv) {
-    const char *scene_path = NULL, *method = "raymarch", *shot = NULL;
-    int width = 0, height = 0, frames = 1, rc = LU_EXIT_OK;
-    bool compare = false;
+    const char *scene_path = NULL, *method = "raymarch", *shot = NULL, *stats_path = NULL;
+    int width = 0, height = 0, frames = -1, rc = LU_EXIT_OK;
+    bool compare = false, moving_defaults = true;
+    lu_kvlist moving_extra = {0};
+    lu_view_script script = LU_VIEW_SCRIPT_NONE;
     static viewer v;
     memset(&v, 0, sizeof v);
-    v.want_backend = LU_BACKEND_GPU;
+    v.want_backend = LU_BACKEND_AUTO;
     v.overlay = true;
+    v.budget_ms = 33.0;
     lu_error err = {0};
     for (int i = 1; i < argc && rc == LU_EXIT_OK; i++) {
         const char *a = argv[i];
@@ -484,25 +874,40 @@ int lu_cmd_view(int argc, char **argv) {
         } else if (strcmp(a, "--method") == 0 && has_next) {
             method = argv[++i];
         } else if (strcmp(a, "--backend") == 0 && has_next) {
-            if (!lu_cli_parse_backend(argv[++i], &v.want_backend)) rc = lu_cli_usage("view", "--backend takes cpu or gpu");
+            if (!lu_cli_parse_backend(argv[++i], &v.want_backend))
+                rc = lu_cli_usage("view", "--backend takes cpu, gpu or auto");
         } else if (strcmp(a, "--set") == 0 && has_next) {
             if (lu_kv_parse_assignment(&v.settings, argv[++i], &err) != LU_OK) rc = lu_cli_error("view", &err);
+        } else if (strcmp(a, "--moving-set") == 0 && has_next) {
+            if (strcmp(argv[++i], "none") == 0) moving_defaults = false;
+            else if (lu_kv_parse_assignment(&moving_extra, argv[i], &err) != LU_OK) rc = lu_cli_error("view", &err);
         } else if (strcmp(a, "--size") == 0 && has_next) {
             if (!lu_cli_parse_size(argv[++i], &width, &height)) rc = lu_cli_usage("view", "--size takes WxH");
         } else if (strcmp(a, "--exposure") == 0 && has_next) {
             char *end;
             v.exposure = strtof(argv[++i], &end);
             if (*end) rc = lu_cli_usage("view", "--exposure takes a number");
+        } else if (strcmp(a, "--budget") == 0 && has_next) {
+            char *end;
+            v.budget_ms = strtod(argv[++i], &end);
+            if (*end || end == argv[i] || !(v.budget_ms > 0.0 && v.budget_ms <= 60000.0))
+                rc = lu_cli_usage("view", "--budget takes milliseconds in (0, 60000] (\"%s\")", argv[i]);
         } else if (strcmp(a, "--compare") == 0) {
             compare = true;
         } else if (strcmp(a, "--no-overlay") == 0) {
             v.overlay = false;
         } else if (strcmp(a, "--screenshot") == 0 && has_next) {
             shot = argv[++i];
+        } else if (strcmp(a, "--script") == 0 && has_next) {
+            if (!lu_view_script_parse(argv[++i], &script))
+                rc = lu_cli_usage("view", "--script takes orbit or light (\"%s\")", argv[i]);
+        } else if (strcmp(a, "--stats") == 0 && has_next) {
+            stats_path = argv[++i];
         } else if (strcmp(a, "--frames") == 0 && has_next) {
             char *end;
             long n = strtol(argv[++i], &end, 10);
-            if (*end || n < 1 || n > 1000000) rc = lu_cli_usage("view", "--frames takes a positive integer");
+            if (*end || end == argv[i] || n < 1 || n > 1000000)
+                rc = lu_cli_usage("view", "--frames takes a positive integer (\"%s\")", argv[i]);
             frames = (int)n;
         } else if (a[0] == '-') {
             rc = lu_cli_usage("view", "unknown or incomplete option \"%s\"", a);
@@ -518,10 +923,34 @@ int lu_cmd_view(int argc, char **argv) {
     const lu_method *m0 = rc == LU_EXIT_OK ? lu_method_find(method) : NULL;
     if (rc == LU_EXIT_OK && !m0) rc = lu_cli_usage("view", "no method named \"%s\" (see lucent methods)", method);
     if (rc == LU_EXIT_OK && lu_settings_validate(&v.settings, &err) != LU_OK) rc = lu_cli_error("view", &err);
+    /* the moving settings: --set, then the defaults, then --moving-set; each
+     * method must accept them */
+    if (rc == LU_EXIT_OK && kv_copy(&v.moving_settings, &v.settings, &err) != LU_OK) rc = lu_cli_error("view", &err);
+    for (size_t i = 0; moving_defaults && rc == LU_EXIT_OK && i < sizeof k_moving / sizeof k_moving[0]; i++)
+        if (lu_kv_set_number(&v.moving_settings, k_moving[i].key, &k_moving[i].value, 1, &err) != LU_OK)
+            rc = lu_cli_error("view", &err);
+    if (rc == LU_EXIT_OK && kv_copy(&v.moving_settings, &moving_extra, &err) != LU_OK) rc = lu_cli_error("view", &err);
+    if (rc == LU_EXIT_OK && lu_settings_validate(&moving_extra, &err) != LU_OK) {
+        fprintf(stderr, "lucent view: error: --moving-set: %s\n", err.message);
+        rc = LU_EXIT_FAIL;
+    }
+    {
+        int nm;
+        const lu_method *const *ms = lu_methods(&nm);
+        double vals[LU_MAX_PARAMS];
+        for (int i = 0; i < nm && rc == LU_EXIT_OK; i++)
+            if (lu_method_resolve_params(ms[i], &v.moving_settings, vals, &err) != LU_OK) {
+                fprintf(stderr, "lucent view: error: --moving-set: %s\n", err.message);
+                rc = LU_EXIT_FAIL;
+            }
+    }
+    lu_kv_free(&moving_extra);
     if (rc != LU_EXIT_OK) {
         lu_kv_free(&v.settings);
+        lu_kv_free(&v.moving_settings);
         return rc;
     }
+    if (frames < 0) frames = script ? 8 : 1;
     int n;
     const lu_method *const *all = lu_methods(&n);
     for (int i = 0; i < n; i++)
@@ -530,17 +959,32 @@ int lu_cmd_view(int argc, char **argv) {
     rc = lu_cli_load_scene("view", scene_path, width, height, &v.scene);
     if (rc != LU_EXIT_OK) {
         lu_kv_free(&v.settings);
+        lu_kv_free(&v.moving_settings);
+        return rc;
+    }
+    char why[200];
+    if (!lu_view_script_check(&v.scene, script, why, sizeof why)) {
+        rc = lu_cli_usage("view", "--script light: %s (%s)", why, scene_path);
+        lu_scene_destroy(&v.scene);
+        lu_kv_free(&v.settings);
+        lu_kv_free(&v.moving_settings);
         return rc;
     }
     v.cam0 = v.scene.camera;
     int w = v.scene.camera.width, h = v.scene.camera.height;
+    v.width = w;
+    v.height = h;
+    v.scale = 1.0;
+    v.last_input = -1e9;
     v.lights0 = malloc((size_t)(v.scene.light_count ? v.scene.light_count : 1) * sizeof *v.lights0);
     v.ref_lights = malloc((size_t)(v.scene.light_count ? v.scene.light_count : 1) * sizeof *v.ref_lights);
     v.rel_l2 = -1.0;
     v.accum = malloc((size_t)w * h * 3 * sizeof(float));
     v.rgb = malloc((size_t)w * h * 3);
+    v.cols = malloc((size_t)w * sizeof *v.cols);
+    tone_lut_init();
     GLFWwindow *win = NULL;
-    if (!v.lights0 || !v.ref_lights || !v.accum || !v.rgb || lu_image_create(&v.img, w, h, &err) != LU_OK) {
+    if (!v.lights0 || !v.ref_lights || !v.accum || !v.rgb || !v.cols || lu_image_create(&v.shown, w, h, &err) != LU_OK) {
         fprintf(stderr, "lucent view: error: out of memory for a %dx%d image\n", w, h);
         rc = LU_EXIT_FAIL;
         goto done;
@@ -567,6 +1011,8 @@ int lu_cmd_view(int argc, char **argv) {
         glfwTerminate();
         goto done;
     }
+    /* the auto decision and its note, once a window shows that the viewer can run */
+    lu_cli_resolve_backend("view", v.want_backend, NULL);
     glfwSetKeyCallback(win, on_key);
     glfwSetMouseButtonCallback(win, on_button);
     glfwSetCursorPosCallback(win, on_cursor);
@@ -575,14 +1021,61 @@ int lu_cmd_view(int argc, char **argv) {
     v.dirty = true;
     if (compare && !render_reference(&v)) fprintf(stderr, "lucent view: %s\n", v.status);
     v.fps_t0 = glfwGetTime();
-    int frame = 0;
+    int frame = 0, shown_frames = 0, script_frame = 0;
+    double script_end = 0.0;
+    bool settled = false;
+    double spp_goal = progressive(&v) ? param_value(&v, "pathtrace", "spp") : 1.0;
     while (!glfwWindowShouldClose(win)) {
-        /* Deterministic methods render again only after a change;
-         * progressive ones keep adding passes (until one fails); --screenshot
-         * renders every frame. */
-        bool render_now = v.dirty || (progressive(&v) && !v.status[0]) || shot;
+        double t0 = glfwGetTime();
+        bool scripted_step = script && script_frame < frames && shown_frames > 0;
+        if (scripted_step) {
+            script_frame++;
+            lu_view_script_apply(&v.scene, &v.cam0, v.scene.light_count ? &v.lights0[0] : NULL, script, script_frame);
+            if (script == LU_VIEW_SCRIPT_LIGHT) v.need_create = true;
+            reset_accumulation(&v);
+            if (script_frame == frames) script_end = t0;
+        }
+        /* Interacting: a change within the grace time (scripted: this
+         * frame's step), or a drag in progress. */
+        bool interacting = script ? scripted_step
+                                  : v.dragging || v.dragging_light || t0 - v.last_input < LU_VIEW_GRACE_S;
+        bool render_now = false, new_view = v.dirty;
+        if (v.dirty) {
+            v.quality = interacting && has_moving_quality(&v) ? Q_MOVING : Q_FULL;
+            v.scale = interacting ? budget_scale(&v, v.quality) : 1.0;
+            render_now = true;
+        } else if ((v.scale < 1.0 || v.quality != Q_FULL) && !interacting && !v.status[0]) {
+            /* refine: the resolution doubles, then the quality goes to full */
+            if (v.scale < 1.0) {
+                v.scale = fmin(1.0, 2.0 * v.scale);
+                if (v.scale > 0.75) v.scale = 1.0;   /* the last step goes to full, not to 0.8 */
+            } else {
+                v.quality = Q_FULL;
+            }
+            render_now = true;
+        } else if (progressive(&v) && !v.status[0] && (!script || v.passes < spp_goal)) {
+            render_now = true;
+        } else if (shot && !script) {
+            render_now = true;
+        }
+        if (script && !scripted_step && shown_frames > 0 && !render_now) settled = true;
+        if (script && script_frame == frames && t0 - script_end > LU_VIEW_SETTLE_CAP_S) settled = true;
+        if (settled && script) {
+            if (v.scale < 1.0 || v.quality != Q_FULL || (progressive(&v) && v.passes < spp_goal))
+                fprintf(stderr, "lucent view: the full image was not reached %.0f s after the last input\n",
+                        LU_VIEW_SETTLE_CAP_S);
+            break;
+        }
+        double render_ms = -1.0;
         if (render_now) {
-            if (render_frame(&v)) update_error(&v);
+            if (render_frame(&v)) {
+                render_ms = v.r->last_render_ms;
+                upsample(&v);
+                update_error(&v);
+            } else if (script) {
+                rc = LU_EXIT_FAIL;
+                break;
+            }
             v.fps_frames++;
             double now = glfwGetTime();
             if (now - v.fps_t0 >= 0.5 || v.fps_frames == 1) {
@@ -594,41 +1087,70 @@ int lu_cmd_view(int argc, char **argv) {
         glfwMakeContextCurrent(win);   /* the method's GPU path made its own context current */
         compose(&v);
         draw(win, &v);
-        if (shot && ++frame >= frames) {
-            glFinish();
-            if (!save_screenshot(w, h, shot, &err)) {
-                rc = lu_cli_error("view", &err);
-            } else {
-                fprintf(stderr, "lucent view: %s after %d frames of %s on %s (last %.1f ms)", shot, frames,
-                        current_method(&v)->name, lu_backend_name(backend_for(&v)), v.last_ms);
-                if (v.rel_l2 >= 0.0) fprintf(stderr, ", rel-L2 vs reference %.6g", v.rel_l2);
-                fputc('\n', stderr);
-                if (v.status[0]) rc = LU_EXIT_FAIL;
+        bool last_shot = shot && !script && ++frame >= frames;
+        if (!last_shot) glfwSwapBuffers(win);
+        if (render_now) {
+            double frame_ms = 1e3 * (glfwGetTime() - t0);
+            if (render_ms >= 0.0) update_cost(&v, render_ms, frame_ms);
+            if (stats_path && !stats_add(&v, shown_frames, frame_ms, new_view)) {
+                fprintf(stderr, "lucent view: error: out of memory for --stats\n");
+                rc = LU_EXIT_FAIL;
+                break;
             }
-            break;
+            shown_frames++;
         }
-        glfwSwapBuffers(win);
-        if (render_now) glfwPollEvents();
+        if (last_shot) break;
+        if (script || render_now) glfwPollEvents();
+        else if ((v.scale < 1.0 || v.quality != Q_FULL) && !v.dragging && !v.dragging_light && !v.status[0])
+            /* wake when the grace time ends, to refine */
+            glfwWaitEventsTimeout(fmax(0.001, LU_VIEW_GRACE_S - (glfwGetTime() - v.last_input)));
         else glfwWaitEventsTimeout(0.25);
     }
+    if (rc == LU_EXIT_OK && shot) {
+        /* script: the settled frame is in the back buffer again (draw above) */
+        if (script) {
+            glfwMakeContextCurrent(win);
+            compose(&v);
+            draw(win, &v);
+        }
+        glFinish();
+        if (!save_screenshot(w, h, shot, &err)) {
+            rc = lu_cli_error("view", &err);
+        } else {
+            fprintf(stderr, "lucent view: %s after %d frames of %s on %s (last %.1f ms)", shot,
+                    script ? shown_frames : frames, current_method(&v)->name, lu_backend_name(backend_for(&v)), v.last_ms);
+            if (v.rel_l2 >= 0.0) fprintf(stderr, ", rel-L2 vs reference %.6g", v.rel_l2);
+            fputc('\n', stderr);
+            if (v.status[0]) rc = LU_EXIT_FAIL;
+        }
+    }
+    if (rc == LU_EXIT_OK && stats_path) {
+        stats_compare(&v);
+        if (!stats_write(&v, stats_path, &err)) rc = lu_cli_error("view", &err);
+    }
+    if (rc == LU_EXIT_OK && script) script_summary(&v, script, frames);
     /* the method's contexts go before the window's */
-    lu_renderer_destroy(v.r);
-    v.r = NULL;
+    destroy_renderers(&v);
     glfwDestroyWindow(win);
     /* No glfwTerminate: it closes the display and unloads the GL driver, and
      * Mesa 22.3's swrast_dri.so leaks on every unload (LeakSanitizer; the same
      * reason the GPU backend never terminates its EGL displays, context.c).
      * The process ends right after this command. */
 done:
-    lu_renderer_destroy(v.r);
+    destroy_renderers(&v);
     lu_image_destroy(&v.img);
+    lu_image_destroy(&v.shown);
     lu_image_destroy(&v.ref);
+    for (int i = 0; i < v.row_count; i++) free(v.rows[i].shown);
+    free(v.rows);
     free(v.ref_lights);
     free(v.accum);
     free(v.rgb);
+    free(v.cols);
     free(v.lights0);
     lu_scene_destroy(&v.scene);
     lu_kv_free(&v.settings);
+    lu_kv_free(&v.moving_settings);
     return rc;
 }
 

@@ -48,8 +48,21 @@ bool lu_cli_parse_size(const char *s, int *w, int *h) {
 bool lu_cli_parse_backend(const char *s, lu_backend *b) {
     if (strcmp(s, "cpu") == 0) *b = LU_BACKEND_CPU;
     else if (strcmp(s, "gpu") == 0) *b = LU_BACKEND_GPU;
+    else if (strcmp(s, "auto") == 0) *b = LU_BACKEND_AUTO;
     else return false;
     return true;
+}
+
+lu_backend lu_cli_resolve_backend(const char *cmd, lu_backend b, const lu_method *m) {
+    if (b != LU_BACKEND_AUTO) return b;
+    lu_backend got = m ? lu_backend_resolve(b, m) : lu_backend_auto(NULL);
+    static bool noted;
+    const char *why;
+    if (lu_backend_auto(&why) == LU_BACKEND_CPU && (!m || (m->backends & LU_BACKEND_GPU)) && !noted) {
+        noted = true;
+        fprintf(stderr, "lucent %s: note: --backend auto: no hardware GPU (%s); running on the CPU\n", cmd, why);
+    }
+    return got;
 }
 
 int lu_cli_load_scene(const char *cmd, const char *path, int width, int height, lu_scene *scene) {

@@ -273,6 +273,49 @@ static lu_result fill_via_program(lu_gpu_context *ctx, float value, float *got, 
     return r;
 }
 
+/* LU_BACKEND_AUTO, the zero-initialised choice: the GPU exactly when a
+ * hardware context can be made (asked independently, through
+ * lu_gpu_context_create's HARDWARE preference), else the CPU; a method
+ * without a GPU path runs on the CPU either way. The probe leaves the
+ * caller's context current. */
+static void test_backend_auto(void) {
+    lu_error err;
+    lu_gpu_context *hw = NULL;
+    bool hardware = lu_gpu_context_create(&hw, LU_GPU_HARDWARE, &err) == LU_OK;
+    lu_gpu_context_destroy(hw);
+    const char *why = NULL;
+    lu_backend b = lu_backend_auto(&why);
+    CHECK_MSG(b == (hardware ? LU_BACKEND_GPU : LU_BACKEND_CPU), "auto = %s, hardware context %s (%s)",
+              lu_backend_name(b), hardware ? "made" : "not made", why ? why : "");
+    CHECK(why && why[0]);
+    CHECK(lu_backend_auto(NULL) == b);   /* decided once */
+    CHECK(strcmp(lu_backend_name(LU_BACKEND_AUTO), "auto") == 0);
+    CHECK(lu_backend_resolve(LU_BACKEND_AUTO, lu_method_find("raymarch")) == b);
+    CHECK(lu_backend_resolve(LU_BACKEND_AUTO, lu_method_find("reference")) == LU_BACKEND_CPU);
+    CHECK(lu_backend_resolve(LU_BACKEND_GPU, lu_method_find("raymarch")) == LU_BACKEND_GPU);
+
+    lu_scene scene;
+    CHECK_OK(lu_scene_load(LU_SOURCE_DIR "/scenes/smoke_glow.json", &scene, &err), &err);
+    scene.camera.width = 8;
+    scene.camera.height = 6;
+    static const char *const names[] = {"raymarch", "reference"};
+    for (int i = 0; i < 2; i++) {
+        lu_renderer *r = NULL;
+        lu_backend zero = {0};
+        CHECK_OK(lu_renderer_create(names[i], &scene, NULL, zero, &r, &err), &err);
+        if (r) CHECK(r->backend == lu_backend_resolve(LU_BACKEND_AUTO, r->method));
+        lu_renderer_destroy(r);
+    }
+    lu_scene_destroy(&scene);
+
+    if (!g_ctx) return;
+    char text[400];
+    float v = 0;
+    CHECK_OK(fill_via_program(g_ctx, 2.0f, &v, &err), &err);
+    CHECK(lu_gpu_hardware_probe(text, sizeof text) == hardware);
+    CHECK(lu_gpu_context_is_current(g_ctx));
+}
+
 static void test_two_contexts(void) {
     if (!g_ctx) return;
     lu_error err;
@@ -731,6 +774,7 @@ int main(int argc, char **argv) {
     RUN_TEST(test_translate_log);
     RUN_TEST(test_context);
     RUN_TEST(test_two_contexts);
+    RUN_TEST(test_backend_auto);
     RUN_TEST(test_kernel_selftest);
     RUN_TEST(test_texture_trilinear);
     RUN_TEST(test_image);

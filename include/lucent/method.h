@@ -23,8 +23,20 @@
 extern "C" {
 #endif
 
-typedef enum lu_backend { LU_BACKEND_CPU = 1, LU_BACKEND_GPU = 2 } lu_backend;
-const char *lu_backend_name(lu_backend b);
+/* Where a renderer runs. LU_BACKEND_AUTO (0, so a zero-initialised choice
+ * means it): the GPU when this machine has a hardware GPU (see
+ * lu_backend_auto), otherwise the CPU; a method without a GPU path runs on
+ * the CPU. A software rasteriser (Mesa llvmpipe) is never chosen
+ * automatically: it runs the same kernels slower than the CPU path
+ * (docs/gpu.md). LU_BACKEND_GPU forces the GPU backend, llvmpipe included. */
+typedef enum lu_backend { LU_BACKEND_AUTO = 0, LU_BACKEND_CPU = 1, LU_BACKEND_GPU = 2 } lu_backend;
+const char *lu_backend_name(lu_backend b);   /* "auto", "cpu", "gpu" */
+/* What AUTO means on this machine, LU_BACKEND_GPU or LU_BACKEND_CPU, decided
+ * once per process: the first call looks for a hardware EGL device (under
+ * LUCENT_GPU and LUCENT_GPU_DEVICE) and confirms it with an OpenGL 4.5 context
+ * that it destroys again. why, when not NULL, receives a text that lives as
+ * long as the process: the device found, or why there is none. Thread-safe. */
+lu_backend lu_backend_auto(const char **why);
 
 typedef enum lu_param_type { LU_PARAM_INT = 0, LU_PARAM_FLOAT, LU_PARAM_BOOL, LU_PARAM_CHOICE } lu_param_type;
 
@@ -93,6 +105,9 @@ typedef struct lu_method {
 } lu_method;
 
 const lu_method *const *lu_methods(int *count);
+/* The backend a renderer of m asked for b runs on: b itself when it is CPU or
+ * GPU; AUTO: lu_backend_auto() when m has a GPU path, else the CPU. */
+lu_backend lu_backend_resolve(lu_backend b, const lu_method *m);
 const lu_method *lu_method_find(const char *name);
 
 /* Resolves settings for method m into values[] (defaults, then the preset
@@ -104,7 +119,7 @@ lu_result lu_settings_validate(const lu_kvlist *settings, lu_error *err);
 
 typedef struct lu_renderer {
     const lu_method *method;
-    lu_backend backend;
+    lu_backend backend;      /* resolved: CPU or GPU, never AUTO */
     double params[LU_MAX_PARAMS];
     void *state;
     double prepare_ms;       /* wall time of the prepare step */

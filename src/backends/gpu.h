@@ -104,7 +104,16 @@ typedef struct lu_gpu_info {
  * error names every candidate tried and why it failed. */
 lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err);
 void lu_gpu_context_destroy(lu_gpu_context *ctx);
+/* True when a hardware GPU can serve the GPU backend under LUCENT_GPU and
+ * LUCENT_GPU_DEVICE: a non-software EGL device that gives an OpenGL 4.5 core
+ * context. The context is made and destroyed again, and the caller's current
+ * EGL context is restored. Where EGL enumerates its devices and none is
+ * hardware, no driver is loaded. why receives the device found, or why there
+ * is none (LUCENT_GPU=software counts as none). */
+bool lu_gpu_hardware_probe(char *why, size_t why_size);
 void lu_gpu_info_get(const lu_gpu_context *ctx, lu_gpu_info *out);
+/* True when ctx is the calling thread's current context. */
+bool lu_gpu_context_is_current(const lu_gpu_context *ctx);
 /* Makes ctx current on the calling thread (every call below does this itself). */
 lu_result lu_gpu_make_current(lu_gpu_context *ctx, lu_error *err);
 /* glFinish: waits for all submitted work. */

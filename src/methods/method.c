@@ -34,8 +34,6 @@ const lu_method *lu_method_find(const char *name) {
     return NULL;
 }
 
-const char *lu_backend_name(lu_backend b) { return b == LU_BACKEND_GPU ? "gpu" : "cpu"; }
-
 static const lu_param_desc *find_param(const lu_method *m, const char *name, int *index) {
     for (int i = 0; i < m->param_count; i++)
         if (strcmp(m->params[i].name, name) == 0) {
@@ -175,6 +173,7 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
             used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "", all[i]->name);
         return lu_fail(err, LU_ERR_INVALID_ARG, "no method named \"%s\" (available: %s)", method, names);
     }
+    backend = lu_backend_resolve(backend, m);
     if (!(m->backends & backend))
         return lu_fail(err, LU_ERR_UNSUPPORTED, "method %s does not run on the %s backend", m->name,
                        lu_backend_name(backend));

@@ -2,7 +2,8 @@
 # The GPU backend from the command line: `info --gpu` names a 4.5 context;
 # LUCENT_GPU narrows the device kind, LUCENT_GPU_DEVICE picks a device; a forced --backend gpu without a usable
 # GPU fails with one clear line (exit 1), --backend auto falls back to the CPU
-# with a note and the same image; methods without a GPU path say so.
+# with a note and the same image; methods without a GPU path say so; auto
+# means a hardware GPU, else the CPU (never llvmpipe), with one note line.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
 lucent=$1
@@ -16,6 +17,12 @@ scene=$src/scenes/smoke_glow.json
 grep -q "^version .*4\.[5-9]" "$tmp/info.txt" || { cat "$tmp/info.txt"; fail "no 4.5 version line"; }
 grep -q "^renderer " "$tmp/info.txt" || fail "no renderer line"
 grep -q "^max work groups" "$tmp/info.txt" || fail "no limits"
+# auto is the GPU exactly when a hardware context can be made
+if LUCENT_GPU=hardware "$lucent" info --gpu >/dev/null 2>&1; then
+  grep -q "^backend auto  *gpu" "$tmp/info.txt" || { cat "$tmp/info.txt"; fail "info: auto should be gpu"; }
+else
+  grep -q "^backend auto  *cpu (no hardware GPU)" "$tmp/info.txt" || { cat "$tmp/info.txt"; fail "info: auto should be cpu"; }
+fi
 LUCENT_GPU=software "$lucent" info --gpu | grep -q "(software)" || fail "LUCENT_GPU=software did not give a software renderer"
 
 # An unknown LUCENT_GPU value is an error naming the variable.
@@ -47,7 +54,7 @@ if grep -q "(software)" "$tmp/info.txt"; then
   grep -q "hardware requested" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "hardware message"; }
   LUCENT_QUIET=1 LUCENT_GPU=hardware "$lucent" render "$scene" --method raymarch --backend auto --size 16x12 \
     -o "$tmp/auto.pfm" 2>"$tmp/e.txt" || { cat "$tmp/e.txt"; fail "--backend auto did not fall back"; }
-  grep -q "note: no GPU" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "no fallback note"; }
+  grep -q "note: --backend auto: no hardware GPU" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "no fallback note"; }
   grep -q "on cpu" "$tmp/e.txt" || fail "fallback did not say cpu"
   LUCENT_QUIET=1 "$lucent" render "$scene" --method raymarch --size 16x12 -o "$tmp/cpu.pfm" 2>/dev/null || fail "cpu render"
   cmp -s "$tmp/auto.pfm" "$tmp/cpu.pfm" || fail "fallback image differs from the CPU image"
@@ -60,8 +67,27 @@ grep -q "does not run on the gpu backend" "$tmp/e.txt" || { cat "$tmp/e.txt"; fa
 "$lucent" render "$scene" --method raymarch --backend tpu -o "$tmp/x.png" 2>/dev/null
 [[ $? == 2 ]] || fail "--backend tpu: expected usage exit 2"
 
-# --backend auto on the GPU equals the CPU image within the cross-backend tolerance.
+# --backend auto: with only a software rasteriser (this machine, CI) it is the
+# CPU, said in exactly one note line, and the image is the CPU's bit for bit;
+# on a hardware GPU it runs there and equals the CPU image within the
+# cross-backend tolerance. --backend gpu still takes llvmpipe.
 LUCENT_QUIET=1 "$lucent" render "$scene" --method raymarch --backend auto --size 24x16 -o "$tmp/a.pfm" 2>"$tmp/e.txt" || fail "auto render"
 LUCENT_QUIET=1 "$lucent" render "$scene" --method raymarch --size 24x16 -o "$tmp/c.pfm" 2>/dev/null || fail "cpu render"
-"$lucent" compare "$tmp/a.pfm" "$tmp/c.pfm" | awk '$1 == "rel_l2" { exit !($2 <= 1e-3) }' || fail "auto vs cpu"
+if grep -q "(software)" "$tmp/info.txt"; then
+  [[ $(grep -c "note: --backend auto: no hardware GPU" "$tmp/e.txt") == 1 ]] || { cat "$tmp/e.txt"; fail "auto: one note line"; }
+  [[ $(grep -c "note" "$tmp/e.txt") == 1 ]] || { cat "$tmp/e.txt"; fail "auto: more than one note"; }
+  grep -q "with raymarch on cpu" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "auto without hardware did not run on cpu"; }
+  cmp -s "$tmp/a.pfm" "$tmp/c.pfm" || fail "auto image differs from the CPU image"
+  LUCENT_QUIET=1 "$lucent" render "$scene" --method raymarch --backend gpu --size 24x16 -o "$tmp/g.pfm" 2>"$tmp/e.txt" \
+    || { cat "$tmp/e.txt"; fail "--backend gpu on the software rasteriser"; }
+  grep -q "with raymarch on gpu" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "--backend gpu did not run on gpu"; }
+else
+  grep -q "with raymarch on gpu" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "auto with a hardware GPU did not run on gpu"; }
+  "$lucent" compare "$tmp/a.pfm" "$tmp/c.pfm" | awk '$1 == "rel_l2" { exit !($2 <= 1e-3) }' || fail "auto vs cpu"
+fi
+# A method without a GPU path: auto is the CPU, with no note about GPUs.
+LUCENT_QUIET=1 "$lucent" render "$scene" --method reference --backend auto --size 8x6 \
+  -o "$tmp/r.pfm" 2>"$tmp/e.txt" || { cat "$tmp/e.txt"; fail "auto reference"; }
+grep -q "note" "$tmp/e.txt" && { cat "$tmp/e.txt"; fail "auto reference: a note for a CPU-only method"; }
+grep -q "with reference on cpu" "$tmp/e.txt" || fail "auto reference not on cpu"
 echo ok

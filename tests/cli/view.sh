@@ -64,7 +64,7 @@ view "$src/scenes/smoke_glow.json" --size 48x36 --compare --no-overlay --screens
   || { cat "$tmp/e.txt"; fail "view --compare"; }
 live=$(sed -n 's/.*rel-L2 vs reference \([0-9.e+-]*\).*/\1/p' "$tmp/e.txt")
 [[ -n $live ]] || { cat "$tmp/e.txt"; fail "no live rel-L2 reported"; }
-"$lucent" render "$src/scenes/smoke_glow.json" --method raymarch --backend gpu --size 48x36 -o "$tmp/rm.pfm" 2>/dev/null
+"$lucent" render "$src/scenes/smoke_glow.json" --method raymarch --backend auto --size 48x36 -o "$tmp/rm.pfm" 2>/dev/null
 "$lucent" render "$src/scenes/smoke_glow.json" --method reference --size 48x36 -o "$tmp/ref.pfm" 2>/dev/null
 want=$("$lucent" compare "$tmp/rm.pfm" "$tmp/ref.pfm" | awk '$1 == "rel_l2" { print $2 }')
 echo "  live rel-L2 $live, lucent compare $want"

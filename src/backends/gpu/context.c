@@ -1,6 +1,8 @@
 /* Headless OpenGL 4.5 core context through EGL: enumerate EGL devices
  * (EGL_EXT_device_enumeration + EGL_EXT_platform_device), prefer hardware
- * ones, fall back to Mesa's surfaceless platform; GL entry points via libepoxy. */
+ * ones, fall back to Mesa's surfaceless platform; GL entry points via libepoxy.
+ * lu_gpu_hardware_probe answers, for LU_BACKEND_AUTO, whether a hardware
+ * device is there, from the same candidate list. */
 #ifdef LU_HAVE_GPU
 #include "backends/gpu/gpu_internal.h"
 
@@ -232,43 +234,55 @@ static void append(char *out, size_t out_size, const char *fmt, const char *a, c
     if (len + 1 < out_size) snprintf(out + len, out_size - len, fmt, a, b);
 }
 
-lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err) {
-    *out = NULL;
-    double t0 = lu_time_seconds();
-    if (pref != LU_GPU_AUTO && pref != LU_GPU_HARDWARE && pref != LU_GPU_SOFTWARE)
-        return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: unknown device preference %d", (int)pref);
-    /* LUCENT_GPU narrows an automatic choice (methods create AUTO contexts),
-     * so a user can insist on the hardware device or on llvmpipe. */
+/* LUCENT_GPU narrows an automatic choice (methods create AUTO contexts), so a
+ * user can insist on the hardware device or on llvmpipe. */
+static lu_result env_preference(lu_gpu_device_pref *pref, lu_error *err) {
     const char *env = getenv("LUCENT_GPU");
-    if (pref == LU_GPU_AUTO && env && *env) {
-        if (strcmp(env, "hardware") == 0) pref = LU_GPU_HARDWARE;
-        else if (strcmp(env, "software") == 0) pref = LU_GPU_SOFTWARE;
-        else if (strcmp(env, "auto") != 0)
-            return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: LUCENT_GPU=\"%.40s\" (expected auto, hardware or software)",
-                           env);
-    }
+    if (*pref != LU_GPU_AUTO || !env || !*env) return LU_OK;
+    if (strcmp(env, "hardware") == 0) *pref = LU_GPU_HARDWARE;
+    else if (strcmp(env, "software") == 0) *pref = LU_GPU_SOFTWARE;
+    else if (strcmp(env, "auto") != 0)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: LUCENT_GPU=\"%.40s\" (expected auto, hardware or software)", env);
+    return LU_OK;
+}
 
-    /* libepoxy exits the process if it cannot dlopen a GL library when the
-     * first GL function is resolved; check first so this is an error instead. */
+/* EGL's client extensions, after checking that a GL library can be loaded:
+ * libepoxy exits the process if it cannot dlopen one when the first GL
+ * function is resolved, so this is an error instead. */
+static lu_result egl_client(const char **client, lu_error *err) {
     void *gl = dlopen("libOpenGL.so.0", RTLD_LAZY | RTLD_LOCAL);
     if (!gl) gl = dlopen("libGL.so.1", RTLD_LAZY | RTLD_LOCAL);
     if (!gl) return lu_fail(err, LU_ERR_BACKEND, "gpu: neither libOpenGL.so.0 nor libGL.so.1 can be loaded");
     dlclose(gl);
-
-    const char *client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-    if (!client) {
+    *client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+    if (!*client) {
         eglGetError();
         return lu_fail(err, LU_ERR_BACKEND,
                        "gpu: no EGL display: EGL has no client extensions (EGL_EXT_client_extensions), "
                        "so no platform display can be made");
     }
-    if (!has_ext(client, "EGL_EXT_platform_base"))
+    if (!has_ext(*client, "EGL_EXT_platform_base"))
         return lu_fail(err, LU_ERR_BACKEND,
                        "gpu: no EGL display: EGL lacks EGL_EXT_platform_base (no EGL driver installed, "
                        "e.g. libegl-mesa0?)");
+    return LU_OK;
+}
 
-    /* LUCENT_GPU_DEVICE=N: only EGL device N (as `lucent info --gpu` lists
-     * them), for machines with several GPUs. */
+/* The candidates a context of preference pref tries, in order: hardware EGL
+ * devices, software ones, then Mesa's surfaceless platform. LUCENT_GPU_DEVICE=N
+ * keeps only EGL device N (as `lucent info --gpu` lists them), for machines
+ * with several GPUs. *enumerated: EGL listed its devices. */
+typedef struct candidate_list {
+    candidate c[LU_GPU_MAX_DEVICES + 1];
+    int count;
+    bool enumerated;
+    char device_list[sizeof ((lu_gpu_info *)0)->device_list];
+} candidate_list;
+
+static lu_result list_candidates(const char *client, lu_gpu_device_pref pref, candidate_list *out, lu_error *err) {
+    out->count = 0;
+    out->enumerated = false;
+    out->device_list[0] = '\0';
     int only = -1;
     const char *dev_env = getenv("LUCENT_GPU_DEVICE");
     if (dev_env && *dev_env) {
@@ -279,12 +293,6 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
                            LU_GPU_MAX_DEVICES - 1);
         only = (int)v;
     }
-
-    lu_gpu_context *ctx = calloc(1, sizeof *ctx);
-    if (!ctx) return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
-
-    candidate cands[LU_GPU_MAX_DEVICES + 1];
-    int ncand = 0;
     bool can_enumerate = has_ext(client, "EGL_EXT_device_enumeration") || has_ext(client, "EGL_EXT_device_base");
     if (can_enumerate && has_ext(client, "EGL_EXT_platform_device")) {
         EGLDeviceEXT devs[LU_GPU_MAX_DEVICES];
@@ -293,63 +301,86 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
             eglGetError();
             ndev = 0;
         }
+        out->enumerated = true;
         candidate hw[LU_GPU_MAX_DEVICES], sw[LU_GPU_MAX_DEVICES];
         int nhw = 0, nsw = 0;
         for (int i = 0; i < ndev; i++) {
             candidate c = {EGL_PLATFORM_DEVICE_EXT, devs[i], false, ""};
             describe_device(devs[i], i, &c.software_device, c.desc, sizeof c.desc);
-            append(ctx->info.device_list, sizeof ctx->info.device_list, "%s%s",
-                   ctx->info.device_list[0] ? "; " : "", c.desc);
+            append(out->device_list, sizeof out->device_list, "%s%s", out->device_list[0] ? "; " : "", c.desc);
             if (only >= 0 && i != only) continue;
             if (c.software_device) sw[nsw++] = c;
             else hw[nhw++] = c;
         }
-        if (only >= ndev) {
-            lu_result e = lu_fail(err, LU_ERR_BACKEND, "gpu: LUCENT_GPU_DEVICE=%d but there are %d EGL devices (%.300s)",
-                                  only, (int)ndev, ndev ? ctx->info.device_list : "none");
-            free(ctx);
-            return e;
-        }
+        if (only >= ndev)
+            return lu_fail(err, LU_ERR_BACKEND, "gpu: LUCENT_GPU_DEVICE=%d but there are %d EGL devices (%.300s)",
+                           only, (int)ndev, ndev ? out->device_list : "none");
         if (pref != LU_GPU_SOFTWARE)
-            for (int i = 0; i < nhw; i++) cands[ncand++] = hw[i];
+            for (int i = 0; i < nhw; i++) out->c[out->count++] = hw[i];
         if (pref != LU_GPU_HARDWARE)
-            for (int i = 0; i < nsw; i++) cands[ncand++] = sw[i];
-        if (ndev == 0) snprintf(ctx->info.device_list, sizeof ctx->info.device_list, "(no EGL devices)");
+            for (int i = 0; i < nsw; i++) out->c[out->count++] = sw[i];
+        if (ndev == 0) snprintf(out->device_list, sizeof out->device_list, "(no EGL devices)");
     } else {
-        snprintf(ctx->info.device_list, sizeof ctx->info.device_list,
+        snprintf(out->device_list, sizeof out->device_list,
                  "(EGL_EXT_device_enumeration/EGL_EXT_platform_device not available)");
     }
-    if (only >= 0 && !can_enumerate) {
-        free(ctx);
+    if (only >= 0 && !can_enumerate)
         return lu_fail(err, LU_ERR_BACKEND, "gpu: LUCENT_GPU_DEVICE is set but EGL cannot enumerate devices");
-    }
     if (only < 0 && has_ext(client, "EGL_MESA_platform_surfaceless")) {
-        candidate c = {EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, false,
-                       "EGL_PLATFORM_SURFACELESS_MESA"};
-        cands[ncand++] = c;
+        candidate c = {EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, false, "EGL_PLATFORM_SURFACELESS_MESA"};
+        out->c[out->count++] = c;
     }
+    return LU_OK;
+}
+
+lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err) {
+    *out = NULL;
+    double t0 = lu_time_seconds();
+    if (pref != LU_GPU_AUTO && pref != LU_GPU_HARDWARE && pref != LU_GPU_SOFTWARE)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: unknown device preference %d", (int)pref);
+    const char *client = NULL;
+    lu_result r = env_preference(&pref, err);
+    if (r == LU_OK) r = egl_client(&client, err);
+    if (r != LU_OK) return r;
+    candidate_list *cands = malloc(sizeof *cands);
+    lu_gpu_context *ctx = calloc(1, sizeof *ctx);
+    if (!cands || !ctx) {
+        free(cands);
+        free(ctx);
+        return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
+    }
+    r = list_candidates(client, pref, cands, err);
+    if (r != LU_OK) {
+        free(cands);
+        free(ctx);
+        return r;
+    }
+    memcpy(ctx->info.device_list, cands->device_list, sizeof ctx->info.device_list);
 
     static const char *const pref_names[] = {"auto", "hardware", "software"};
     char tried[640] = "";
-    for (int i = 0; i < ncand; i++) {
+    for (int i = 0; i < cands->count; i++) {
         char why[320];
-        if (try_candidate(&cands[i], pref, ctx, why, sizeof why)) {
+        if (try_candidate(&cands->c[i], pref, ctx, why, sizeof why)) {
             lu_gpu_info *info = &ctx->info;
             snprintf(info->egl_path, sizeof info->egl_path, "%s",
-                     cands[i].platform == EGL_PLATFORM_DEVICE_EXT ? "device" : "surfaceless");
-            snprintf(info->device, sizeof info->device, "%s", cands[i].desc);
+                     cands->c[i].platform == EGL_PLATFORM_DEVICE_EXT ? "device" : "surfaceless");
+            snprintf(info->device, sizeof info->device, "%s", cands->c[i].desc);
             query_limits(info);
             if (renderer_is_software(info->renderer)) info->is_software = true;
             info->loop_cap = strstr(info->renderer, "llvmpipe") != NULL;
             info->create_seconds = lu_time_seconds() - t0;
+            free(cands);
             *out = ctx;
             return LU_OK;
         }
-        append(tried, sizeof tried, "%s%s", tried[0] ? "; " : "", cands[i].desc);
+        append(tried, sizeof tried, "%s%s", tried[0] ? "; " : "", cands->c[i].desc);
         append(tried, sizeof tried, ": %s%s", why, "");
     }
-    char device_list[sizeof ctx->info.device_list];
-    memcpy(device_list, ctx->info.device_list, sizeof device_list);
+    int ncand = cands->count;
+    char device_list[sizeof cands->device_list];
+    memcpy(device_list, cands->device_list, sizeof device_list);
+    free(cands);
     free(ctx);
     if (ncand == 0)
         return lu_fail(err, LU_ERR_BACKEND,
@@ -358,6 +389,66 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
                        pref_names[pref], device_list, client);
     return lu_fail(err, LU_ERR_BACKEND, "gpu: no usable OpenGL 4.5 core context (preference %s): %s",
                    pref_names[pref], tried);
+}
+
+bool lu_gpu_hardware_probe(char *why, size_t why_size) {
+    lu_gpu_device_pref pref = LU_GPU_AUTO;
+    const char *client = NULL;
+    lu_error err = {0};
+    if (env_preference(&pref, &err) != LU_OK || egl_client(&client, &err) != LU_OK) {
+        snprintf(why, why_size, "%s", err.message);
+        return false;
+    }
+    if (pref == LU_GPU_SOFTWARE) {
+        snprintf(why, why_size, "LUCENT_GPU=software");
+        return false;
+    }
+    candidate_list *cands = malloc(sizeof *cands);
+    if (!cands) {
+        snprintf(why, why_size, "out of memory");
+        return false;
+    }
+    if (list_candidates(client, LU_GPU_HARDWARE, cands, &err) != LU_OK) {
+        snprintf(why, why_size, "%s", err.message);
+        free(cands);
+        return false;
+    }
+    /* The probe must leave the caller's EGL state as it was (a viewer's
+     * window context may be current). */
+    EGLenum api = eglQueryAPI();
+    EGLDisplay cur_dpy = eglGetCurrentDisplay();
+    EGLContext cur_ctx = eglGetCurrentContext();
+    EGLSurface cur_draw = eglGetCurrentSurface(EGL_DRAW), cur_read = eglGetCurrentSurface(EGL_READ);
+    bool found = false;
+    char tried[400] = "";
+    for (int i = 0; i < cands->count && !found; i++) {
+        /* Where EGL lists its devices, the surfaceless platform reaches one of
+         * them or llvmpipe: skipping it means a machine without a hardware
+         * device loads no driver at all for this question. */
+        if (cands->enumerated && cands->c[i].platform == EGL_PLATFORM_SURFACELESS_MESA) continue;
+        lu_gpu_context probe = {0};
+        char reason[320];
+        if (try_candidate(&cands->c[i], LU_GPU_HARDWARE, &probe, reason, sizeof reason)) {
+            eglMakeCurrent(probe.display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+            eglDestroyContext(probe.display, probe.context);
+            snprintf(why, why_size, "%s", cands->c[i].desc);
+            found = true;
+        } else {
+            append(tried, sizeof tried, "%s%s", tried[0] ? "; " : "", cands->c[i].desc);
+            append(tried, sizeof tried, ": %s%s", reason, "");
+        }
+    }
+    if (!found)
+        snprintf(why, why_size, "%s%.300s", tried[0] ? "tried " : "EGL devices: ",
+                 tried[0] ? tried : cands->device_list);
+    free(cands);
+    if (cur_ctx != EGL_NO_CONTEXT) {
+        eglBindAPI(api);
+        eglMakeCurrent(cur_dpy, cur_draw, cur_read, cur_ctx);
+    } else if (found) {
+        eglReleaseThread();
+    }
+    return found;
 }
 
 void lu_gpu_context_destroy(lu_gpu_context *ctx) {
@@ -371,6 +462,8 @@ void lu_gpu_context_destroy(lu_gpu_context *ctx) {
 }
 
 void lu_gpu_info_get(const lu_gpu_context *ctx, lu_gpu_info *out) { *out = ctx->info; }
+
+bool lu_gpu_context_is_current(const lu_gpu_context *ctx) { return ctx && eglGetCurrentContext() == ctx->context; }
 
 lu_result lu_gpu_bind_context(lu_gpu_context *ctx, lu_error *err) {
     if (!ctx) return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: NULL context");

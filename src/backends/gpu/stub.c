@@ -3,6 +3,7 @@
 #ifndef LU_HAVE_GPU
 #include "backends/gpu.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 
 #define LU_GPU_NO(err) lu_fail(err, LU_ERR_BACKEND, "gpu: built without GPU support (EGL/epoxy not found by pkg-config)")
@@ -12,6 +13,11 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     return LU_GPU_NO(err);
 }
 void lu_gpu_context_destroy(lu_gpu_context *ctx) {}
+bool lu_gpu_hardware_probe(char *why, size_t why_size) {
+    snprintf(why, why_size, "built without GPU support (EGL/epoxy not found by pkg-config)");
+    return false;
+}
+bool lu_gpu_context_is_current(const lu_gpu_context *ctx) { return false; }
 void lu_gpu_info_get(const lu_gpu_context *ctx, lu_gpu_info *out) { *out = (lu_gpu_info){0}; }
 lu_result lu_gpu_make_current(lu_gpu_context *ctx, lu_error *err) { return LU_GPU_NO(err); }
 void lu_gpu_finish(lu_gpu_context *ctx) {}
