@@ -601,7 +601,8 @@ static void move_light(viewer *v, float yaw, float pitch) {
     } else {
         return;
     }
-    v->need_create = true;
+    /* The renderer's frame stage sees the light move and rebuilds only what
+     * depends on that light. */
     reset_accumulation(v);
 }
 
@@ -1031,7 +1032,6 @@ int lu_cmd_view(int argc, char **argv) {
         if (scripted_step) {
             script_frame++;
             lu_view_script_apply(&v.scene, &v.cam0, v.scene.light_count ? &v.lights0[0] : NULL, script, script_frame);
-            if (script == LU_VIEW_SCRIPT_LIGHT) v.need_create = true;
             reset_accumulation(&v);
             if (script_frame == frames) script_end = t0;
         }
