@@ -25,7 +25,8 @@
 #   machine: every library the binary loads, the GL/EGL loaders too, comes
 #   from the folder, and `DIR/run.sh --tiny --allow-software` completes under
 #   `env -i` with LUCENT_GPU=software (Mesa's llvmpipe stands in for the
-#   GPU). The folder is left for the device run.
+#   GPU), then again, as root, in a chroot that holds only glibc, libstdc++,
+#   zlib, the shell tools and Mesa. The folder is left for the device run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -172,6 +173,63 @@ PY
   fi
 }
 
+# tiny_ok OUTDIR: a --tiny --allow-software run wrote hardware.md, said the
+# device was software, and every call succeeded.
+tiny_ok() {
+  [[ -s $1/hardware.md ]] || die "the runner wrote no hardware.md in $1"
+  grep -q "software device" "$1/hardware.md" || die "hardware.md does not say the device was software"
+  if grep -q "failed\|timed out\|skipped" "$1/hardware.md"; then
+    grep "failed\|timed out\|skipped" "$1/hardware.md" >&2
+    die "a call of the tiny run did not succeed (above)"
+  fi
+}
+
+# check_bare DIR: the tiny run in a chroot that holds only what a bare glibc
+# image has (glibc, libstdc++, libgcc_s, zlib, the shell tools run.sh uses)
+# plus Mesa's EGL vendor library with its own dependencies, standing in for
+# the machine's GPU driver: nothing of lucent's but the folder. Needs root.
+check_bare() {
+  local dir=$1 root f l
+  if [[ $(id -u) -ne 0 ]] || ! command -v chroot >/dev/null; then
+    echo "bench_gpu: the chroot check needs root; skipped"
+    return 0
+  fi
+  root=$(mktemp -d)
+  # shellcheck disable=SC2064
+  trap "rm -rf '$root'" RETURN
+  local tools="bash env cat cut head tail tee sed grep awk tar gzip cksum mktemp mkdir rm cp mv ls date nproc timeout touch dirname basename sort wc"
+  local mesa=(/usr/lib/x86_64-linux-gnu/libEGL_mesa.so.0 /usr/lib/x86_64-linux-gnu/dri/swrast_dri.so)
+  local files=("${mesa[@]}")
+  for f in $tools; do files+=("$(command -v "$f")"); done
+  for f in $(dpkg -L libc6 libstdc++6 libgcc-s1 zlib1g | grep -E '/lib/x86_64-linux-gnu/[^/]+\.so[.0-9]*$'); do
+    [[ -e $f ]] && files+=("$f")
+  done
+  for f in "${files[@]}"; do
+    [[ -e $f ]] || die "the chroot check needs $f"
+    mkdir -p "$root$(dirname "$f")"
+    cp -L "$f" "$root$f"
+    for l in $(ldd "$f" 2>/dev/null | awk '$3 ~ /^\// { print $3 } $1 ~ /^\// { print $1 }'); do
+      mkdir -p "$root$(dirname "$l")"
+      [[ -e $root$l ]] || cp -L "$l" "$root$l"
+    done
+  done
+  mkdir -p "$root/usr/share/glvnd/egl_vendor.d" "$root/tmp" "$root/dev"
+  mknod -m 666 "$root/dev/null" c 1 3
+  cp /usr/share/glvnd/egl_vendor.d/50_mesa.json "$root/usr/share/glvnd/egl_vendor.d/"
+  for l in libembree3.so.3 libepoxy.so.0 libEGL.so.1 libGLdispatch.so.0 libOpenGL.so.0; do
+    [[ -z $(find "$root" -name "$l") ]] || die "the chroot holds $l: it would not show that the folder carries it"
+  done
+  cp -r "$dir" "$root/carry"
+  # llvmpipe compiles each shader with LLVM (tens of seconds for the biggest
+  # on 2 busy cores); the host's Mesa cache, when there is one, spares that.
+  [[ -d $HOME/.cache/mesa_shader_cache ]] && cp -r "$HOME/.cache/mesa_shader_cache" "$root/tmp/mesa"
+  chroot "$root" /usr/bin/env -i PATH=/usr/bin:/bin LUCENT_GPU=software MESA_SHADER_CACHE_DIR=/tmp/mesa \
+    bash /carry/run.sh --tiny --allow-software --out /tmp/out >/dev/null 2>&1 ||
+    die "the runner failed in the chroot: $(tail -3 "$root/tmp/out/hardware_log.txt" 2>/dev/null)"
+  tiny_ok "$root/tmp/out"
+  echo "bench_gpu: the tiny run passed in a chroot with only glibc, libstdc++, zlib, the shell tools and Mesa"
+}
+
 # check DIR: the dry run's checks on this machine.
 check() {
   local dir=$1 t
@@ -198,12 +256,7 @@ check() {
   echo "bench_gpu: every carried library the binary loaded came from the folder ($(grep -c "calling init: $lib/" "$t/ld.txt") of them)"
   # The runner, end to end, at tiny sizes.
   "${envi[@]}" bash "$dir/run.sh" --tiny --allow-software --out "$t/out" || die "the runner failed: see $t/out/hardware_log.txt"
-  [[ -s $t/out/hardware.md ]] || die "the runner wrote no hardware.md"
-  grep -q "software device" "$t/out/hardware.md" || die "hardware.md does not say the device was software"
-  if grep -q "failed\|timed out" "$t/out/hardware.md"; then
-    grep "failed\|timed out" "$t/out/hardware.md" >&2
-    die "a call of the tiny run did not succeed (above)"
-  fi
+  tiny_ok "$t/out"
   # Without --allow-software it must refuse on this software device.
   if "${envi[@]}" bash "$dir/run.sh" --tiny --out "$t/refused" >/dev/null 2>&1 || [[ -e $t/refused/hardware.md ]]; then
     die "the runner did not refuse a software device without --allow-software"
@@ -233,7 +286,7 @@ if [[ ${1:-} == --prepare || ${1:-} == --dry-run ]]; then
   fi
   prepare "$dir" "$build"
   dir=$(cd "$dir" && pwd)
-  [[ $mode == --dry-run ]] && check "$dir"
+  [[ $mode == --dry-run ]] && check "$dir" && check_bare "$dir"
   echo "bench_gpu: ready: bash $dir/run.sh (docs/gpu/README.md)"
   exit 0
 fi

@@ -20,14 +20,15 @@
 #    (device, driver, machine) and hardware_log.txt (every command's output).
 #    hardware.md is rewritten after each case, so a run cut short still
 #    leaves what it measured.
-# --tiny: each case's tiny size and cheap settings, one frame: a smoke test
-# of the plumbing (on llvmpipe), not a measurement.
+# --tiny: each case's tiny size and cheap settings, one frame, 4x the time
+# budgets and --limit 1800: a smoke test of the plumbing (on llvmpipe), not a
+# measurement.
 set -uo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 allow_software=0
 tiny=0
 out=${OUT:-docs/gpu}
-limit=540
+limit=
 only=
 while (($#)); do
   case $1 in
@@ -41,6 +42,11 @@ while (($#)); do
   esac
   shift
 done
+# --tiny runs on llvmpipe, where LLVM compiles each shader for tens of seconds
+# on a busy machine: each budget x4 and 30 minutes in all.
+scale=1
+((tiny)) && scale=4
+limit=${limit:-$((tiny ? 1800 : 540))}
 [[ $limit =~ ^[0-9]+$ ]] || { echo "run.sh: --limit takes whole seconds, got '$limit'" >&2; exit 2; }
 start=$SECONDS
 mkdir -p "$out" || exit 1
@@ -106,7 +112,7 @@ rm -f "$bench_csv"
 
 # budget_for S: S capped by what is left of --limit (0 when too little is left to start).
 budget_for() {
-  local left=$((limit - (SECONDS - start))) b=$1
+  local left=$((limit - (SECONDS - start))) b=$(($1 * scale))
   ((left < b)) && b=$left
   ((b < 10)) && b=0
   echo "$b"
