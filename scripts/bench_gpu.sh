@@ -8,7 +8,7 @@
 #   the error against the reference. Writes docs/gpu/bench.csv (bench rows),
 #   docs/gpu/agreement.csv and docs/gpu/machine.txt.
 #
-# scripts/bench_gpu.sh --prepare DIR [--build BUILD_DIR]
+# scripts/bench_gpu.sh --prepare DIR [--build BUILD_DIR]   (paths from the repository root)
 #   Makes DIR, a folder that runs every GPU method at the seeds' settings on a
 #   machine with a GPU and nothing of lucent installed, no network, as one
 #   command (`bash DIR/run.sh`, scripts/gpu_runner.sh; docs/gpu/README.md):
