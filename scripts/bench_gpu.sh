@@ -240,7 +240,8 @@ check() {
   # Every non-base library the binary and the GL loaders load comes from the folder.
   "${envi[@]}" bash -c ". '$dir/env.sh' && LD_DEBUG=libs lucent info --gpu" >"$t/info.txt" 2>"$t/ld.txt" ||
     { cat "$t/info.txt" "$t/ld.txt" | tail -5 >&2; die "the carried lucent cannot make a GPU context here"; }
-  local lib=$t/lucent-carry-$(cksum <"$dir/lib.tar.gz" | cut -d' ' -f1)
+  local lib
+  lib=$t/lucent-carry-$(cksum <"$dir/lib.tar.gz" | cut -d' ' -f1)
   local name loaded bad=0
   while read -r name _; do
     loaded=$(sed -n "s|.*calling init: \(.*/$name\)\$|\1|p" "$t/ld.txt" | head -1)

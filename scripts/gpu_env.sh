@@ -1,3 +1,4 @@
+# shellcheck shell=bash
 # Sourced (bash) from a carry folder made by `scripts/bench_gpu.sh --prepare
 # DIR` (this file is DIR/env.sh there): makes DIR/bin/lucent runnable on a
 # machine that has none of its libraries.
