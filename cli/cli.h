@@ -15,6 +15,7 @@ int lu_cmd_bench(int argc, char **argv);
 int lu_cmd_methods(int argc, char **argv);
 int lu_cmd_profile(int argc, char **argv);
 int lu_cmd_view(int argc, char **argv);
+int lu_cmd_export_grid(int argc, char **argv);
 
 /* One line on stderr: "lucent <cmd>: error: <message>"; returns LU_EXIT_FAIL. */
 int lu_cli_error(const char *cmd, const lu_error *err);

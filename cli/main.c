@@ -15,6 +15,7 @@ static const char k_usage[] =
     "  bench SCENE.json... --methods a,b,...                time methods (sweeps, motions), error vs reference\n"
     "  view SCENE.json [--method M]                         interactive viewer (window)\n"
     "  info FILE                                            summarise a scene, mesh, grid or image\n"
+    "  export-grid SCENE.json -o OUT.nvdb                   write a medium's density grid as NanoVDB\n"
     "  methods                                              list methods and their parameters\n"
     "  profile --preset NAME                                diffusion profile of a translucent material\n"
     "\n"
@@ -134,7 +135,7 @@ int main(int argc, char **argv) {
         int (*fn)(int, char **);
     } cmds[] = {{"render", lu_cmd_render}, {"compare", lu_cmd_compare}, {"bench", lu_cmd_bench},
                 {"info", lu_cmd_info},     {"methods", lu_cmd_methods}, {"profile", lu_cmd_profile},
-                {"view", lu_cmd_view}};
+                {"view", lu_cmd_view},     {"export-grid", lu_cmd_export_grid}};
     for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++)
         if (strcmp(argv[1], cmds[i].name) == 0) return cmds[i].fn(argc - 1, argv + 1);
     fprintf(stderr, "lucent: unknown command \"%s\"\n\n%s", argv[1], k_usage);
