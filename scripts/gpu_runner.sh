@@ -132,7 +132,8 @@ bench_call() {
   ((budget)) || { echo "skipped (time limit)"; return; }
   [[ $backend == cpu ]] && frames=$frames_cpu
   local args=("$here/$scene" --methods "$m" --backends "$backend" --size "$size" --frames "$frames"
-    --warmup "$warmup" --reference "$img/truth.exr" --save-images "$img" --csv "$work/b.csv" "${set_args[@]}")
+    --warmup "$warmup" --reference "$img/truth.exr" --save-images "$img" --csv "$work/b.csv" --no-yardstick
+    "${set_args[@]}")
   echo "== $c: lucent bench ${args[*]} (budget $budget s)" >>"$log"
   local t0=$SECONDS rc
   rm -f "$work/b.csv"
