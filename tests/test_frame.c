@@ -219,6 +219,10 @@ static const char *const k_cheap_translucent =
 
 static void test_translucent_methods_cpu(void) {
     run_sequence("bssrdf_spheres.json", "bssrdf", LU_BACKEND_CPU, k_cheap_translucent);
+    /* an environment light (its SH and the environment splats' flux follow it) */
+    run_sequence("dragon_env.json", "bssrdf", LU_BACKEND_CPU,
+                 "bssrdf.map_res=48 bssrdf.table_size=64 bssrdf.prefilter=2 bssrdf.env_samples=300 "
+                 "bssrdf.relax_iters=2");
     run_sequence("cube_torus.json", "ddod", LU_BACKEND_CPU, k_cheap_translucent);
 }
 

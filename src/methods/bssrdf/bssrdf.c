@@ -24,6 +24,9 @@
  *      per pixel, the sum over its tile's splats of the same object, then
  *      lu_k_bssrdf_shade (F_t/pi weighting, Blinn-Phong highlight, shadows
  *      for opaque objects from the same light-space maps, SH9 irradiance).
+ * Steps 1-2 read the lights and never the camera: they are kept across
+ * camera moves and redone per light that changed; 3-4 are redone when the
+ * camera moved (4 also when a splat changed); 5 runs every frame.
  * Media other than the translucent objects' own are not rendered. */
 #include <lucent/lucent.h>
 

@@ -1,7 +1,8 @@
 /* The ddod method's GPU passes (see ddod.h): the shared GPU scene plus this
  * method's buffers at LU_SCENE_BINDING_FREE and above; samples and SH are
  * uploaded once per sample set, the traced table when the camera or a
- * light moves, the frame's pixel records and tile lists every frame. */
+ * light moves, the pixel records and tile lists when ddod.c rebuilt them
+ * (their versions in lu_ddod_frame). */
 #include <stdlib.h>
 
 #include "backends/gpu.h"
