@@ -4,10 +4,12 @@
 #define LU_TEST_H
 
 #include <lucent/lucent.h>
+#include <dirent.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static int lu_test_failures = 0;
 static int lu_test_checks = 0;
@@ -103,6 +105,21 @@ static inline void lu_test_settings(lu_kvlist *kv, const char *settings) {
     lu_error err = {0};
     snprintf(buf, sizeof buf, "%s", settings ? settings : "");
     for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " ")) CHECK_OK(lu_kv_parse_assignment(kv, tok, &err), &err);
+}
+
+/* Removes dir and the files in it (a test's scratch folder, e.g. a cache). */
+static inline void lu_test_remove_dir(const char *dir) {
+    DIR *d = opendir(dir);
+    if (!d) return;
+    struct dirent *e;
+    char path[1024];
+    while ((e = readdir(d)))
+        if (e->d_name[0] != '.') {
+            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+            remove(path);
+        }
+    closedir(d);
+    rmdir(dir);
 }
 
 #define RUN_TEST(fn)                                   \

@@ -519,21 +519,6 @@ static bool render(const lu_scene *s, const char *method, lu_backend be, const c
     return true;
 }
 
-/* Removes dir and the files in it (a test's cache folder). */
-static void remove_dir(const char *dir) {
-    DIR *d = opendir(dir);
-    if (!d) return;
-    struct dirent *e;
-    char path[512];
-    while ((e = readdir(d)))
-        if (e->d_name[0] != '.') {
-            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
-            remove(path);
-        }
-    closedir(d);
-    rmdir(dir);
-}
-
 /* ddod against the truth at reduced settings (the defaults are measured in
  * docs/ddod.md): small images, fewer samples, so the tolerance is wider
  * than the 2 % target. Both the default (traced view and light
@@ -582,7 +567,7 @@ static void test_images(void) {
         lu_scene_destroy(&s);
     }
     unsetenv("LUCENT_CACHE_DIR");
-    remove_dir(dir);
+    lu_test_remove_dir(dir);
 }
 
 /* The precomputation's result does not depend on the thread count: the

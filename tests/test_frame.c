@@ -8,6 +8,7 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "backends/gpu.h"
@@ -90,7 +91,21 @@ static const product k_products[] = {
     {"media_rays.maps", LU_CHANGE_LIGHTS | LU_CHANGE_GEOMETRY, false},
     {"media_rays.boundary_maps", LU_CHANGE_LIGHTS | LU_CHANGE_GEOMETRY, false},
     {"media_rays.surface_vis", LU_CHANGE_CAMERA | LU_CHANGE_GEOMETRY, true},
+    /* bssrdf: the light-space maps and the splats made from them are the
+     * light's; the camera's hits and the splats' screen tiles are the camera's */
+    {"bssrdf.maps", LU_CHANGE_GEOMETRY, true},
+    {"bssrdf.splats", LU_CHANGE_GEOMETRY, true},
+    {"bssrdf.gbuffer", LU_CHANGE_CAMERA | LU_CHANGE_GEOMETRY, false},
+    {"bssrdf.bins", LU_CHANGE_CAMERA | LU_CHANGE_LIGHTS | LU_CHANGE_GEOMETRY, false},
+    /* ddod: the precomputation reads the media and the geometry; psi towards
+     * the camera and each light also the camera's or that light's position */
+    {"ddod.set", LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY, false},
+    {"ddod.view_psi", LU_CHANGE_CAMERA | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY, false},
+    {"ddod.light_psi", LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY, true},
+    {"ddod.pixels", LU_CHANGE_ALL, false},
+    {"ddod.bins", LU_CHANGE_CAMERA | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY, false},
 };
+#define PRODUCTS ((int)(sizeof k_products / sizeof k_products[0]))
 
 static int kernel_lights(const lu_scene *sc) {
     int n = 0;
@@ -131,9 +146,9 @@ static void run_sequence(const char *scene_file, const char *method, lu_backend 
         lu_kv_free(&kv);
         return;
     }
-    int np = (int)(sizeof k_products / sizeof k_products[0]);
-    uint64_t before[16] = {0};
-    bool uses[16] = {false};
+    int np = PRODUCTS;
+    uint64_t before[PRODUCTS] = {0};
+    bool uses[PRODUCTS] = {false};
     int identical = 0;
     for (int s = 0; s < S_COUNT; s++) {
         uint64_t lights;
@@ -195,8 +210,43 @@ static void test_view_march_methods_gpu(void) {
     for (int m = 0; m < 3; m++) run_sequence("demo.json", methods[m], LU_BACKEND_GPU, k_cheap);
 }
 
+/* Translucent objects: bssrdf on its spheres (no media: the density and
+ * coefficient steps change nothing it reads), ddod on the cube with the
+ * torus (a grid medium: both steps redo its precomputation). */
+static const char *const k_cheap_translucent =
+    "bssrdf.splats=256 bssrdf.map_res=48 bssrdf.table_size=64 bssrdf.prefilter=2 "
+    "ddod.res=12 ddod.dirs=16 ddod.samples=300 ddod.fit=2";
+
+static void test_translucent_methods_cpu(void) {
+    run_sequence("bssrdf_spheres.json", "bssrdf", LU_BACKEND_CPU, k_cheap_translucent);
+    /* an environment light (its SH and the environment splats' flux follow it) */
+    run_sequence("dragon_env.json", "bssrdf", LU_BACKEND_CPU,
+                 "bssrdf.map_res=48 bssrdf.table_size=64 bssrdf.prefilter=2 bssrdf.env_samples=300 "
+                 "bssrdf.relax_iters=2");
+    run_sequence("cube_torus.json", "ddod", LU_BACKEND_CPU, k_cheap_translucent);
+}
+
+static void test_translucent_methods_gpu(void) {
+    lu_gpu_context *ctx = NULL;
+    lu_error err = {0};
+    if (!lu_gpu_compiled_in() || lu_gpu_context_create(&ctx, LU_GPU_AUTO, &err) != LU_OK) {
+        fprintf(stderr, "  skipped: no GPU context (%s)\n", err.message);
+        return;
+    }
+    lu_gpu_context_destroy(ctx);
+    run_sequence("bssrdf_spheres.json", "bssrdf", LU_BACKEND_GPU, k_cheap_translucent);
+    run_sequence("cube_torus.json", "ddod", LU_BACKEND_GPU, k_cheap_translucent);
+}
+
 int main(void) {
+    /* ddod's precomputation cache: a folder of this run's own */
+    char cache[] = "/tmp/lucent-test-frame-XXXXXX";
+    CHECK(mkdtemp(cache) != NULL);
+    setenv("LUCENT_CACHE_DIR", cache, 1);
     RUN_TEST(test_view_march_methods_cpu);
     RUN_TEST(test_view_march_methods_gpu);
+    RUN_TEST(test_translucent_methods_cpu);
+    RUN_TEST(test_translucent_methods_gpu);
+    lu_test_remove_dir(cache);
     TEST_EXIT();
 }

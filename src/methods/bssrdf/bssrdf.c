@@ -24,6 +24,9 @@
  *      per pixel, the sum over its tile's splats of the same object, then
  *      lu_k_bssrdf_shade (F_t/pi weighting, Blinn-Phong highlight, shadows
  *      for opaque objects from the same light-space maps, SH9 irradiance).
+ * Steps 1-2 read the lights and never the camera: they are kept across
+ * camera moves and redone per light that changed; 3-4 are redone when the
+ * camera moved (4 also when a splat changed); 5 runs every frame.
  * Media other than the translucent objects' own are not rendered. */
 #include <lucent/lucent.h>
 
@@ -146,6 +149,13 @@ typedef struct lmap {
     int *roi;                  /* per translucent object: its texels' bounding rectangle (the region of interest) */
 } lmap;
 
+typedef struct lslot {        /* one scene light's share of the frame's products */
+    int first_view, view_count;
+    lu_k_splat *splats;       /* finished (lu_k_bssrdf_splat_finish), in the order a full pass makes them */
+    int splat_count, splat_cap;
+    long long texels;
+} lslot;
+
 typedef struct tobject {      /* a translucent object */
     int object;
     lu_bssrdf_profile prof;
@@ -153,8 +163,9 @@ typedef struct tobject {      /* a translucent object */
     lu_accel *own;
     lu_aabb bounds;
     float eta_top;
-    lu_k_splat *env;          /* environment splats (static) */
+    lu_k_splat *env;          /* environment splats: positions from prepare, flux from the environment lights */
     int env_count;
+    double env_area;          /* the mesh area the samples share */
     lu_relax_stats relax;
 } tobject;
 
@@ -178,7 +189,17 @@ typedef struct bssrdf_state {
     size_t env_floats;
     float scene[LU_K_BSSRDF_SCENE_FLOATS];
     int light_count, view_count;
-    /* per frame */
+    /* per frame; the products and what they are built from (frame.h):
+     *   bssrdf.maps    per light: its views, light-space maps, shadow maps (the light, the geometry)
+     *   bssrdf.splats  per light: its splats (its maps, the light, the materials)
+     *   bssrdf.env     the environment data and splat fluxes (the environment lights)
+     *   bssrdf.gbuffer the camera rays' hits (the camera, the geometry)
+     *   bssrdf.bins    the splats' screen tiles (the camera, every splat)
+     * the splat gather and deferred shading run every frame. */
+    lslot *slots;             /* per scene light */
+    int slot_count;
+    bool lights_valid, env_valid, splats_valid, gbuf_valid, bins_valid;
+    int env_lights;           /* environment lights fill_env last saw */
     lmap *maps;
     float *shadow;
     size_t shadow_cap;
@@ -305,6 +326,8 @@ static void bssrdf_destroy(void *state) {
     free(st->env);
     free(st->shadow);
     free(st->splats);
+    for (int l = 0; l < st->slot_count; l++) free(st->slots[l].splats);
+    free(st->slots);
     free(st->gbuf);
     lu_tile_bins_free(&st->bins);
     free(st->rects);
@@ -360,6 +383,16 @@ static void fill_material(bssrdf_state *st, int o, const lu_object *ob) {
 
 static float splat_level(const bssrdf_state *st, const tobject *t, double area);
 
+/* Flux of t's environment splats: the Fresnel-weighted SH irradiance L of
+ * the environment lights over each sample's share of the area. */
+static void env_flux(tobject *t, const double L[27]) {
+    double k[3];
+    lu_bssrdf_sh_kernel(t->eta_top, k);
+    double dA = t->env_area / (double)t->env_count;
+    for (int i = 0; i < t->env_count; i++)
+        t->env[i].flux = lu_v3_scale(lu_bssrdf_sh_irradiance(L, k, t->env[i].normal), (float)dA);
+}
+
 /* Environment splats of translucent object t: samples on its mesh, relaxed,
  * with the Fresnel-weighted SH irradiance as flux and the thickness along -n. */
 static lu_result prepare_env_samples(bssrdf_state *st, const lu_scene *scene, tobject *t, const double L[27],
@@ -385,8 +418,6 @@ static lu_result prepare_env_samples(bssrdf_state *st, const lu_scene *scene, to
         if (!t->env) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for %lld environment samples", n);
     }
     if (r == LU_OK) {
-        double k[3];
-        lu_bssrdf_sh_kernel(t->eta_top, k);
         double dA = area / (double)n;
         float far_len = 10.0f * t->prof.r_max * (float)st->p[P_SPLAT_SCALE];
         for (int i = 0; i < (int)n; i++) {
@@ -394,7 +425,6 @@ static lu_result prepare_env_samples(bssrdf_state *st, const lu_scene *scene, to
             s->position = pts.position[i];
             s->normal = pts.normal[i];
             s->object = t->object;
-            s->flux = lu_v3_scale(lu_bssrdf_sh_irradiance(L, k, pts.normal[i]), (float)dA);
             s->level = splat_level(st, t, dA);
             lu_vec3 inward = lu_v3_neg(pts.normal[i]);
             lu_hit h;
@@ -407,9 +437,64 @@ static lu_result prepare_env_samples(bssrdf_state *st, const lu_scene *scene, to
             }
         }
         t->env_count = (int)n;
+        t->env_area = area;
+        env_flux(t, L);
     }
     lu_surface_points_destroy(&pts);
     return r;
+}
+
+/* The environment lights' maps (texels for the lookups), the scene constants
+ * describing them, and the sum of their SH9 projections. */
+static lu_result fill_env(bssrdf_state *st, const lu_scene *scene, double Lsum[27], int *envs_out, lu_error *err) {
+    int envs = 0;
+    size_t env_texels = 0;
+    for (int l = 0; l < scene->light_count; l++)
+        if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) {
+            envs++;
+            env_texels += (size_t)scene->lights[l].env.width * scene->lights[l].env.height;
+        }
+    if (envs > (LU_K_BSSRDF_SCENE_FLOATS - LU_K_BSSRDF_SCENE_ENV_INFO) / 4)
+        return lu_fail(err, LU_ERR_LIMIT, "bssrdf: %d environment lights (at most %d)", envs,
+                       (LU_K_BSSRDF_SCENE_FLOATS - LU_K_BSSRDF_SCENE_ENV_INFO) / 4);
+    size_t floats = 3 * (env_texels ? env_texels : 1);
+    if (floats != st->env_floats || !st->env) {
+        free(st->env);
+        st->env_floats = 0;
+        st->env = calloc(floats, sizeof *st->env);
+        if (!st->env) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the environment maps");
+        st->env_floats = floats;
+    }
+    if (!env_texels) memset(st->env, 0, floats * sizeof *st->env);
+    for (int i = 0; i < 27; i++) Lsum[i] = 0.0;
+    for (int i = LU_K_BSSRDF_SCENE_ENVS; i < LU_K_BSSRDF_SCENE_FLOATS; i++) st->scene[i] = 0.0f;
+    st->scene[LU_K_BSSRDF_SCENE_ENVS] = (float)envs;
+    size_t at = 0;
+    int e = 0;
+    for (int l = 0; l < scene->light_count; l++) {
+        const lu_light *li = &scene->lights[l];
+        if (li->type != LU_LIGHT_ENVIRONMENT) continue;
+        size_t n = (size_t)li->env.width * li->env.height;
+        memcpy(st->env + 3 * at, li->env.rgb, 3 * n * sizeof(float));
+        float *info = st->scene + LU_K_BSSRDF_SCENE_ENV_INFO + 4 * e;
+        info[0] = (float)at;
+        info[1] = (float)li->env.width;
+        info[2] = (float)li->env.height;
+        info[3] = li->env_scale;
+        double L[27];
+        lu_bssrdf_env_project(li, L);
+        for (int i = 0; i < 27; i++) Lsum[i] += L[i];
+        at += n;
+        e++;
+    }
+    double a[3];
+    lu_bssrdf_sh_kernel(0.0f, a);
+    for (int i = 0; i < 9; i++) {
+        int band = i == 0 ? 0 : (i < 4 ? 1 : 2);
+        for (int c = 0; c < 3; c++) st->scene[LU_K_BSSRDF_SCENE_SH + 3 * i + c] = (float)(a[band] * Lsum[3 * i + c]);
+    }
+    *envs_out = envs;
+    return LU_OK;
 }
 
 static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
@@ -492,48 +577,11 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
     for (int i = 0; i < scene->object_count && r == LU_OK; i++) fill_material(st, i, &scene->objects[i]);
 
     /* Environment maps: texels for the lookups, SH9 for the irradiance. */
-    int envs = 0;
-    size_t env_texels = 0;
-    for (int l = 0; l < scene->light_count; l++)
-        if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) {
-            envs++;
-            env_texels += (size_t)scene->lights[l].env.width * scene->lights[l].env.height;
-        }
-    if (envs > (LU_K_BSSRDF_SCENE_FLOATS - LU_K_BSSRDF_SCENE_ENV_INFO) / 4 && r == LU_OK)
-        r = lu_fail(err, LU_ERR_LIMIT, "bssrdf: %d environment lights (at most %d)", envs,
-                    (LU_K_BSSRDF_SCENE_FLOATS - LU_K_BSSRDF_SCENE_ENV_INFO) / 4);
-    if (r == LU_OK) {
-        st->env_floats = 3 * (env_texels ? env_texels : 1);
-        st->env = calloc(st->env_floats, sizeof *st->env);
-        if (!st->env) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the environment maps");
-    }
     double Lsum[27] = {0};
+    int envs = 0;
+    if (r == LU_OK) r = fill_env(st, scene, Lsum, &envs, err);
     if (r == LU_OK) {
-        st->scene[LU_K_BSSRDF_SCENE_ENVS] = (float)envs;
-        size_t at = 0;
-        int e = 0;
-        for (int l = 0; l < scene->light_count; l++) {
-            const lu_light *li = &scene->lights[l];
-            if (li->type != LU_LIGHT_ENVIRONMENT) continue;
-            size_t n = (size_t)li->env.width * li->env.height;
-            memcpy(st->env + 3 * at, li->env.rgb, 3 * n * sizeof(float));
-            float *info = st->scene + LU_K_BSSRDF_SCENE_ENV_INFO + 4 * e;
-            info[0] = (float)at;
-            info[1] = (float)li->env.width;
-            info[2] = (float)li->env.height;
-            info[3] = li->env_scale;
-            double L[27];
-            lu_bssrdf_env_project(li, L);
-            for (int i = 0; i < 27; i++) Lsum[i] += L[i];
-            at += n;
-            e++;
-        }
-        double a[3];
-        lu_bssrdf_sh_kernel(0.0f, a);
-        for (int i = 0; i < 9; i++) {
-            int band = i == 0 ? 0 : (i < 4 ? 1 : 2);
-            for (int c = 0; c < 3; c++) st->scene[LU_K_BSSRDF_SCENE_SH + 3 * i + c] = (float)(a[band] * Lsum[3 * i + c]);
-        }
+        st->env_lights = envs;
         st->scene[LU_K_BSSRDF_SCENE_BACKGROUND] = scene->background.x;
         st->scene[LU_K_BSSRDF_SCENE_BACKGROUND + 1] = scene->background.y;
         st->scene[LU_K_BSSRDF_SCENE_BACKGROUND + 2] = scene->background.z;
@@ -550,6 +598,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
                     rs->last_rms_move, rs->seconds, rs->nn_cv_before, rs->nn_cv_after);
         }
     }
+    st->env_valid = r == LU_OK;
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_bssrdf_gpu_create(&st->gpu, err);
     if (r == LU_OK && st->p[P_STATS] != 0.0)
         for (int i = 0; i < st->tcount; i++)
@@ -666,91 +715,150 @@ static lu_result grow(void **p, size_t *cap, size_t need, size_t elem, lu_error 
     return LU_OK;
 }
 
-static lu_result build_lights(bssrdf_state *st, const lu_scene *scene, lu_error *err) {
+/* View vi's light-space map: the texels over the objects' region ray cast
+ * into its shadow map (reset to "nothing") and its regions of interest. */
+static lu_result cast_view(bssrdf_state *st, const lu_scene *scene, int vi, lslot *slot, lu_error *err) {
     int res = (int)st->p[P_MAP_RES];
+    lmap *m = &st->maps[vi];
+    float *depth = st->shadow + (size_t)vi * res * res;
+    for (size_t i = 0; i < (size_t)res * res; i++) depth[i] = 1e30f;
+    int rect[4];
+    if (!lu_aabb_valid(st->objects_box) || !project_box(&m->view, st->objects_box, res, rect)) return LU_OK;
+    m->x0 = rect[0], m->y0 = rect[1], m->x1 = rect[2], m->y1 = rect[3];
+    m->tex = malloc((size_t)(m->x1 - m->x0) * (m->y1 - m->y0) * sizeof *m->tex);
+    if (!m->tex) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for a light-space map");
+    cast_job j = {st, scene, m, depth, res};
+    lu_parallel_for(m->y1 - m->y0, 4, cast_rows, &j, NULL);
+    slot->texels += (long long)(m->x1 - m->x0) * (m->y1 - m->y0);
+    /* Regions of interest: where each translucent object shows in the map
+     * (tighter than the projected bounding box of the thesis, and exact
+     * for cube faces the box straddles). */
+    m->roi = malloc((size_t)(st->tcount ? st->tcount : 1) * 4 * sizeof *m->roi);
+    if (!m->roi) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+    for (int t = 0; t < st->tcount; t++) {
+        m->roi[4 * t] = m->roi[4 * t + 1] = INT32_MAX;
+        m->roi[4 * t + 2] = m->roi[4 * t + 3] = INT32_MIN;
+    }
+    for (int y = m->y0; y < m->y1; y++)
+        for (int x = m->x0; x < m->x1; x++) {
+            int o = m->tex[(size_t)(y - m->y0) * (m->x1 - m->x0) + (x - m->x0)].object;
+            if (o < 0) continue;
+            int *rc = &m->roi[4 * st->tindex[o]];
+            rc[0] = x < rc[0] ? x : rc[0];
+            rc[1] = y < rc[1] ? y : rc[1];
+            rc[2] = x + 1 > rc[2] ? x + 1 : rc[2];
+            rc[3] = y + 1 > rc[3] ? y + 1 : rc[3];
+        }
+    return LU_OK;
+}
+
+static void free_maps(bssrdf_state *st) {
     if (st->maps)
         for (int v = 0; v < st->view_count; v++) {
             free(st->maps[v].tex);
             free(st->maps[v].roi);
         }
     free(st->maps);
-    free(st->lights);
-    free(st->views);
     st->maps = NULL;
-    st->light_count = scene->light_count;
-    st->view_count = 0;
+}
+
+/* Light l's record, views and maps (bssrdf.maps). Its views keep the slots
+ * [slot->first_view, + count) a full pass gives them. */
+static lu_result build_light(bssrdf_state *st, const lu_frame *f, int l, const lu_lightviews *lv, lu_error *err) {
+    const lu_scene *scene = f->scene;
+    const lu_light *li = &scene->lights[l];
+    lslot *slot = &st->slots[l];
+    float *L = st->lights + (size_t)l * LU_K_BSSRDF_LIGHT_FLOATS;
+    slot->texels = 0;
+    slot->view_count = lv->count;
+    if (li->type == LU_LIGHT_ENVIRONMENT) {
+        L[3] = -1.0f;
+        return LU_OK;
+    }
+    lu_k_light k = lu_light_to_kernel(li);
+    L[0] = k.position.x, L[1] = k.position.y, L[2] = k.position.z, L[3] = (float)k.type;
+    L[4] = k.direction.x, L[5] = k.direction.y, L[6] = k.direction.z, L[7] = k.cos_inner;
+    L[8] = k.intensity.x, L[9] = k.intensity.y, L[10] = k.intensity.z, L[11] = k.cos_outer;
+    L[12] = (float)slot->first_view;
+    L[13] = (float)lv->count;
+    for (int fi = 0; fi < lv->count; fi++) {
+        int vi = slot->first_view + fi;
+        const lu_k_lightview *v = &lv->view[fi];
+        float *V = st->views + (size_t)vi * LU_K_BSSRDF_VIEW_FLOATS;
+        V[0] = v->origin.x, V[1] = v->origin.y, V[2] = v->origin.z, V[3] = (float)v->ortho;
+        V[4] = v->axis_u.x, V[5] = v->axis_u.y, V[6] = v->axis_u.z, V[7] = v->extent_u;
+        V[8] = v->axis_v.x, V[9] = v->axis_v.y, V[10] = v->axis_v.z, V[11] = v->extent_v;
+        V[12] = v->axis_w.x, V[13] = v->axis_w.y, V[14] = v->axis_w.z, V[15] = v->depth_far;
+        lmap *m = &st->maps[vi];
+        free(m->tex);
+        free(m->roi);
+        memset(m, 0, sizeof *m);
+        m->view = *v;
+        m->light = l;
+        lu_result r = cast_view(st, scene, vi, slot, err);
+        if (r != LU_OK) return r;
+    }
+    lu_frame_rebuilt(f, "bssrdf.maps");
+    return LU_OK;
+}
+
+/* Brings the lights' records and maps up to date: every light when the
+ * lights were added or removed, the geometry changed or a light's view count
+ * changed (the view slots move), else only the lights that changed.
+ * redo[l] says which were rebuilt. */
+static lu_result build_lights(bssrdf_state *st, const lu_frame *f, bool redo[64], lu_error *err) {
+    const lu_scene *scene = f->scene;
+    int res = (int)st->p[P_MAP_RES];
+    if (scene->light_count > 64) return lu_fail(err, LU_ERR_LIMIT, "bssrdf: %d lights (at most 64)", scene->light_count);
     lu_lightviews lv[64];
     int total = 0;
-    if (scene->light_count > 64) return lu_fail(err, LU_ERR_LIMIT, "bssrdf: %d lights (at most 64)", scene->light_count);
+    bool all = !st->lights_valid || scene->light_count != st->light_count || (f->changed & LU_CHANGE_GEOMETRY);
     for (int l = 0; l < scene->light_count; l++) {
         lu_lightviews_for_light(&scene->lights[l], st->objects_box, &lv[l]);
         total += lv[l].count;
+        if (!all && lv[l].count != st->slots[l].view_count) all = true;
     }
-    size_t nl = scene->light_count > 0 ? (size_t)scene->light_count : 1u;
-    st->lights = calloc(nl * LU_K_BSSRDF_LIGHT_FLOATS, sizeof(float));
-    size_t nv = total > 0 ? (size_t)total : 1u;
-    st->views = calloc(nv * LU_K_BSSRDF_VIEW_FLOATS, sizeof(float));
-    st->maps = calloc(nv, sizeof *st->maps);
-    if (!st->lights || !st->views || !st->maps) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
-    size_t shadow_need = nv * (size_t)res * (size_t)res;
-    lu_result r = grow((void **)&st->shadow, &st->shadow_cap, shadow_need, sizeof(float), err);
-    if (r != LU_OK) return r;
-    for (size_t i = 0; i < shadow_need; i++) st->shadow[i] = 1e30f;
+    bool any = all;
+    for (int l = 0; l < scene->light_count; l++) any |= redo[l] = all || lu_frame_light_changed(f, l);
     st->scene[LU_K_BSSRDF_SCENE_LIGHTS] = (float)scene->light_count;
-    st->stats.map_texels = 0;
-    for (int l = 0; l < scene->light_count; l++) {
-        const lu_light *li = &scene->lights[l];
-        float *L = st->lights + (size_t)l * LU_K_BSSRDF_LIGHT_FLOATS;
-        if (li->type == LU_LIGHT_ENVIRONMENT) {
-            L[3] = -1.0f;
-            continue;
+    if (!any) return LU_OK;
+    st->lights_valid = false;
+    if (all) {
+        free_maps(st);
+        free(st->lights);
+        free(st->views);
+        st->light_count = scene->light_count;
+        st->view_count = 0;
+        size_t nl = scene->light_count > 0 ? (size_t)scene->light_count : 1u;
+        st->lights = calloc(nl * LU_K_BSSRDF_LIGHT_FLOATS, sizeof(float));
+        size_t nv = total > 0 ? (size_t)total : 1u;
+        st->views = calloc(nv * LU_K_BSSRDF_VIEW_FLOATS, sizeof(float));
+        st->maps = calloc(nv, sizeof *st->maps);
+        if (!st->lights || !st->views || !st->maps) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+        if ((int)nl > st->slot_count) {
+            lslot *sl = realloc(st->slots, nl * sizeof *sl);
+            if (!sl) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+            memset(sl + st->slot_count, 0, (nl - (size_t)st->slot_count) * sizeof *sl);
+            st->slots = sl;
+            st->slot_count = (int)nl;
         }
-        lu_k_light k = lu_light_to_kernel(li);
-        L[0] = k.position.x, L[1] = k.position.y, L[2] = k.position.z, L[3] = (float)k.type;
-        L[4] = k.direction.x, L[5] = k.direction.y, L[6] = k.direction.z, L[7] = k.cos_inner;
-        L[8] = k.intensity.x, L[9] = k.intensity.y, L[10] = k.intensity.z, L[11] = k.cos_outer;
-        L[12] = (float)st->view_count;
-        L[13] = (float)lv[l].count;
-        for (int f = 0; f < lv[l].count; f++) {
-            int vi = st->view_count++;
-            const lu_k_lightview *v = &lv[l].view[f];
-            float *V = st->views + (size_t)vi * LU_K_BSSRDF_VIEW_FLOATS;
-            V[0] = v->origin.x, V[1] = v->origin.y, V[2] = v->origin.z, V[3] = (float)v->ortho;
-            V[4] = v->axis_u.x, V[5] = v->axis_u.y, V[6] = v->axis_u.z, V[7] = v->extent_u;
-            V[8] = v->axis_v.x, V[9] = v->axis_v.y, V[10] = v->axis_v.z, V[11] = v->extent_v;
-            V[12] = v->axis_w.x, V[13] = v->axis_w.y, V[14] = v->axis_w.z, V[15] = v->depth_far;
-            lmap *m = &st->maps[vi];
-            m->view = *v;
-            m->light = l;
-            int rect[4];
-            if (!lu_aabb_valid(st->objects_box) || !project_box(v, st->objects_box, res, rect)) continue;
-            m->x0 = rect[0], m->y0 = rect[1], m->x1 = rect[2], m->y1 = rect[3];
-            m->tex = malloc((size_t)(m->x1 - m->x0) * (m->y1 - m->y0) * sizeof *m->tex);
-            if (!m->tex) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for a light-space map");
-            cast_job j = {st, scene, m, st->shadow + (size_t)vi * res * res, res};
-            lu_parallel_for(m->y1 - m->y0, 4, cast_rows, &j, NULL);
-            st->stats.map_texels += (long long)(m->x1 - m->x0) * (m->y1 - m->y0);
-            /* Regions of interest: where each translucent object shows in the map
-             * (tighter than the projected bounding box of the thesis, and exact
-             * for cube faces the box straddles). */
-            m->roi = malloc((size_t)(st->tcount ? st->tcount : 1) * 4 * sizeof *m->roi);
-            if (!m->roi) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
-            for (int t = 0; t < st->tcount; t++) {
-                m->roi[4 * t] = m->roi[4 * t + 1] = INT32_MAX;
-                m->roi[4 * t + 2] = m->roi[4 * t + 3] = INT32_MIN;
-            }
-            for (int y = m->y0; y < m->y1; y++)
-                for (int x = m->x0; x < m->x1; x++) {
-                    int o = m->tex[(size_t)(y - m->y0) * (m->x1 - m->x0) + (x - m->x0)].object;
-                    if (o < 0) continue;
-                    int *rc = &m->roi[4 * st->tindex[o]];
-                    rc[0] = x < rc[0] ? x : rc[0];
-                    rc[1] = y < rc[1] ? y : rc[1];
-                    rc[2] = x + 1 > rc[2] ? x + 1 : rc[2];
-                    rc[3] = y + 1 > rc[3] ? y + 1 : rc[3];
-                }
+        lu_result r = grow((void **)&st->shadow, &st->shadow_cap, nv * (size_t)res * (size_t)res, sizeof(float), err);
+        if (r != LU_OK) return r;
+        if (total == 0)
+            for (size_t i = 0; i < (size_t)res * res; i++) st->shadow[i] = 1e30f;
+        for (int l = 0; l < scene->light_count; l++) {
+            st->slots[l].first_view = st->view_count;
+            st->view_count += lv[l].count;
         }
     }
+    for (int l = 0; l < scene->light_count; l++) {
+        if (!redo[l]) continue;
+        lu_result r = build_light(st, f, l, &lv[l], err);
+        if (r != LU_OK) return r;
+    }
+    st->stats.map_texels = 0;
+    for (int l = 0; l < scene->light_count; l++) st->stats.map_texels += st->slots[l].texels;
+    st->lights_valid = true;
     return LU_OK;
 }
 
@@ -809,23 +917,26 @@ static bool read_map(const lmap *m, int res, int obj, float u, float v, lmap_tex
     return true;
 }
 
-static lu_result push_splat(bssrdf_state *st, const lu_k_splat *s, lu_error *err) {
-    size_t cap = (size_t)st->splat_cap;
-    lu_result r = grow((void **)&st->splats, &cap, (size_t)st->splat_count + 1, sizeof *st->splats, err);
-    st->splat_cap = (int)cap;
+static lu_result push_splat(lu_k_splat **splats, int *count, int *cap_io, const lu_k_splat *s, lu_error *err) {
+    size_t cap = (size_t)*cap_io;
+    lu_result r = grow((void **)splats, &cap, (size_t)*count + 1, sizeof **splats, err);
+    *cap_io = (int)cap;
     if (r != LU_OK) return r;
-    st->splats[st->splat_count++] = *s;
+    (*splats)[(*count)++] = *s;
     return LU_OK;
 }
 
-static lu_result make_splats(bssrdf_state *st, const lu_scene *scene, lu_error *err) {
+/* Light l's splats (bssrdf.splats), finished for their objects' materials. */
+static lu_result light_splats(bssrdf_state *st, const lu_frame *frame, int l, lu_error *err) {
+    const lu_scene *scene = frame->scene;
     int res = (int)st->p[P_MAP_RES];
     float jitter = (float)st->p[P_JITTER];
     uint32_t seed = (uint32_t)st->p[P_SEED];
-    st->splat_count = 0;
-    for (int l = 0; l < scene->light_count; l++) {
+    lslot *slot = &st->slots[l];
+    slot->splat_count = 0;
+    {
         const float *L = st->lights + (size_t)l * LU_K_BSSRDF_LIGHT_FLOATS;
-        if (L[3] < 0.0f) continue;
+        if (L[3] < 0.0f) return LU_OK;
         int first = (int)L[12], count = (int)L[13];
         lu_k_light kl = lu_light_to_kernel(&scene->lights[l]);
         for (int ti = 0; ti < st->tcount; ti++) {
@@ -883,21 +994,37 @@ static lu_result make_splats(bssrdf_state *st, const lu_scene *scene, lu_error *
                         if (lu_v3_maxc(s.flux) <= 0.0f) continue;
                         /* the surface area of the cell: its projection over the cosine */
                         s.level = splat_level(st, t, aperp / fmax(cos_i, 0.05));
-                        lu_result r = push_splat(st, &s, err);
+                        lu_result r = push_splat(&slot->splats, &slot->splat_count, &slot->splat_cap, &s, err);
                         if (r != LU_OK) return r;
                     }
             }
         }
     }
+    for (int i = 0; i < slot->splat_count; i++)
+        slot->splats[i] = lu_k_bssrdf_splat_finish(lu_k_bssrdf_mat_load(&st->kctx, slot->splats[i].object), slot->splats[i]);
+    lu_frame_rebuilt(frame, "bssrdf.splats");
+    return LU_OK;
+}
+
+/* Every light's splats in scene order, then the environment splats: the
+ * order of the binning and of the per-pixel sums. */
+static lu_result gather_splats(bssrdf_state *st, const lu_scene *scene, lu_error *err) {
+    st->splat_count = 0;
+    for (int l = 0; l < scene->light_count; l++) {
+        const lslot *slot = &st->slots[l];
+        for (int i = 0; i < slot->splat_count; i++) {
+            lu_result r = push_splat(&st->splats, &st->splat_count, &st->splat_cap, &slot->splats[i], err);
+            if (r != LU_OK) return r;
+        }
+    }
     st->stats.env_splats = 0;
     for (int ti = 0; ti < st->tcount; ti++)
         for (int i = 0; i < st->t[ti].env_count; i++) {
-            lu_result r = push_splat(st, &st->t[ti].env[i], err);
+            lu_k_splat s = lu_k_bssrdf_splat_finish(lu_k_bssrdf_mat_load(&st->kctx, st->t[ti].object), st->t[ti].env[i]);
+            lu_result r = push_splat(&st->splats, &st->splat_count, &st->splat_cap, &s, err);
             if (r != LU_OK) return r;
             st->stats.env_splats++;
         }
-    for (int i = 0; i < st->splat_count; i++)
-        st->splats[i] = lu_k_bssrdf_splat_finish(lu_k_bssrdf_mat_load(&st->kctx, st->splats[i].object), st->splats[i]);
     st->stats.splats = st->splat_count;
     return LU_OK;
 }
@@ -1022,6 +1149,38 @@ static double cpu_seconds(void) {
            1e-6 * ((double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_usec);
 }
 
+/* The environment data and the environment splats' flux (bssrdf.env), when
+ * an environment light changed or one was added or removed; the samples'
+ * positions depend on the meshes alone and are kept. */
+static lu_result update_env(bssrdf_state *st, const lu_frame *f, bool *changed, lu_error *err) {
+    const lu_scene *scene = f->scene;
+    *changed = false;
+    int envs = 0;
+    bool stale = !st->env_valid;
+    for (int l = 0; l < scene->light_count; l++)
+        if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) envs++, stale |= lu_frame_light_changed(f, l);
+    if (!stale && envs == st->env_lights) return LU_OK;
+    st->env_valid = false;
+    double L[27];
+    lu_result r = fill_env(st, scene, L, &envs, err);
+    for (int i = 0; i < st->tcount && r == LU_OK; i++) {
+        tobject *t = &st->t[i];
+        if (envs > 0 && t->env) env_flux(t, L);
+        else if (envs > 0) r = prepare_env_samples(st, scene, t, L, err);
+        else {
+            free(t->env);
+            t->env = NULL;
+            t->env_count = 0;
+        }
+    }
+    if (r != LU_OK) return r;
+    st->env_lights = envs;
+    st->env_valid = true;
+    *changed = true;
+    if (envs) lu_frame_rebuilt(f, "bssrdf.env");
+    return LU_OK;
+}
+
 static lu_result bssrdf_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
     const lu_scene *scene = frame->scene;
     bssrdf_state *st = state;
@@ -1031,20 +1190,50 @@ static lu_result bssrdf_render(void *state, const lu_frame *frame, lu_image *out
     frame_job j = {st, scene, lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height),
                    c->width, c->height, (c->width + TILE - 1) / TILE, (c->height + TILE - 1) / TILE, out};
     double t0 = lu_time_seconds(), c0 = cpu_seconds();
-    lu_result r = build_lights(st, scene, err);
+    /* Light side: none of it depends on the camera. */
+    bool redo[64] = {false}, env = false;
+    lu_result r = build_lights(st, frame, redo, err);
+    if (r == LU_OK) r = update_env(st, frame, &env, err);
     if (r != LU_OK) return r;
+    bool lights = env;
+    for (int l = 0; l < scene->light_count; l++) lights |= redo[l];
+    st->scene[LU_K_BSSRDF_SCENE_BACKGROUND] = scene->background.x;
+    st->scene[LU_K_BSSRDF_SCENE_BACKGROUND + 1] = scene->background.y;
+    st->scene[LU_K_BSSRDF_SCENE_BACKGROUND + 2] = scene->background.z;
+    unsigned dirty = (lights || (frame->changed & LU_CHANGE_BACKGROUND) ? LU_BSSRDF_GPU_DATA : 0u) |
+                     (lights ? LU_BSSRDF_GPU_SHADOW : 0u);
     st->kctx = (struct lu_k_ctx){{st->table, st->materials, st->lights, st->views, st->env, st->scene},
                                  st->shadow, (int)st->p[P_MAP_RES]};
     double t1 = lu_time_seconds();
-    r = make_splats(st, scene, err);
-    if (r != LU_OK) return r;
+    if (lights || !st->splats_valid) {
+        st->splats_valid = false;
+        for (int l = 0; l < scene->light_count && r == LU_OK; l++)
+            if (redo[l]) r = light_splats(st, frame, l, err);
+        if (r == LU_OK) r = gather_splats(st, scene, err);
+        if (r != LU_OK) return r;
+        st->splats_valid = true;
+        dirty |= LU_BSSRDF_GPU_SPLATS;
+    }
     double t2 = lu_time_seconds();
-    r = grow((void **)&st->gbuf, &st->gbuf_cap, (size_t)c->width * c->height, sizeof *st->gbuf, err);
-    if (r != LU_OK) return r;
-    lu_parallel_for(c->height, 4, gbuffer_rows, &j, NULL);
+    /* Camera side. */
+    if (lu_frame_stale(frame, st->gbuf_valid, LU_CHANGE_CAMERA | LU_CHANGE_GEOMETRY)) {
+        st->gbuf_valid = false;
+        r = grow((void **)&st->gbuf, &st->gbuf_cap, (size_t)c->width * c->height, sizeof *st->gbuf, err);
+        if (r != LU_OK) return r;
+        lu_parallel_for(c->height, 4, gbuffer_rows, &j, NULL);
+        st->gbuf_valid = true;
+        dirty |= LU_BSSRDF_GPU_GBUF;
+        lu_frame_rebuilt(frame, "bssrdf.gbuffer");
+    }
     double t3 = lu_time_seconds();
-    r = bin_splats(st, &j, err);
-    if (r != LU_OK) return r;
+    if ((dirty & LU_BSSRDF_GPU_SPLATS) || lu_frame_stale(frame, st->bins_valid, LU_CHANGE_CAMERA | LU_CHANGE_GEOMETRY)) {
+        st->bins_valid = false;
+        r = bin_splats(st, &j, err);
+        if (r != LU_OK) return r;
+        st->bins_valid = true;
+        dirty |= LU_BSSRDF_GPU_TILES;
+        lu_frame_rebuilt(frame, "bssrdf.bins");
+    }
     double t4 = lu_time_seconds();
     if (st->backend == LU_BACKEND_GPU) {
         lu_bssrdf_gpu_frame f;
@@ -1075,6 +1264,7 @@ static lu_result bssrdf_render(void *state, const lu_frame *frame, lu_image *out
         f.cam_right = j.cam.right;
         f.cam_up = j.cam.up;
         f.cam_forward = j.cam.forward;
+        f.changed = dirty;
         r = lu_bssrdf_gpu_render(st->gpu, &f, out, err);
         if (r != LU_OK) return r;
     } else {

@@ -19,7 +19,9 @@ struct lu_bssrdf_gpu {
     lu_gpu_buffer *buf[B_COUNT];
     size_t size[B_COUNT];
     float *staging;           /* the concatenated fetch arrays */
-    size_t staging_cap;
+    size_t staging_cap, staging_floats;
+    size_t off[6];
+    bool have[B_COUNT];       /* slot holds the previous frame's upload */
 };
 
 lu_result lu_bssrdf_gpu_create(lu_bssrdf_gpu **out, lu_error *err) {
@@ -45,9 +47,13 @@ void lu_bssrdf_gpu_destroy(lu_bssrdf_gpu *g) {
     free(g);
 }
 
-/* Uploads into buffer slot i, growing it when needed; binds it at i. */
-static lu_result put(lu_bssrdf_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
+/* Uploads into buffer slot i, growing it when needed; binds it at i.
+ * keep: the slot already holds these bytes (a previous frame's upload). */
+static lu_result put(lu_bssrdf_gpu *g, int i, const void *data, size_t bytes, bool keep, lu_error *err) {
     if (bytes == 0) bytes = 16, data = NULL;
+    keep = keep && data && g->have[i] && g->buf[i] && g->size[i] >= bytes;
+    g->have[i] = false;
+    if (keep) data = NULL;
     if (!g->buf[i] || g->size[i] < bytes) {
         lu_gpu_buffer_destroy(g->buf[i]);
         g->buf[i] = NULL;
@@ -61,6 +67,7 @@ static lu_result put(lu_bssrdf_gpu *g, int i, const void *data, size_t bytes, lu
         lu_result r = lu_gpu_buffer_upload(g->buf[i], 0, data, bytes, err);
         if (r != LU_OK) return r;
     }
+    g->have[i] = keep || data;
     return lu_gpu_buffer_bind(g->buf[i], i, err);
 }
 
@@ -71,23 +78,36 @@ lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, l
         total += f->count[b];
     }
     if (total > (size_t)INT32_MAX) return lu_fail(err, LU_ERR_LIMIT, "bssrdf: GPU data of %zu floats", total);
-    if (total > g->staging_cap) {
-        float *s = realloc(g->staging, total * sizeof *s);
-        if (!s) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
-        g->staging = s;
-        g->staging_cap = total;
+    bool keep_data = !(f->changed & LU_BSSRDF_GPU_DATA) && total == g->staging_floats &&
+                     memcmp(off, g->off, sizeof off) == 0;
+    if (!keep_data) {
+        if (total > g->staging_cap) {
+            float *s = realloc(g->staging, total * sizeof *s);
+            if (!s) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
+            g->staging = s;
+            g->staging_cap = total;
+        }
+        for (int b = 0; b < 6; b++) memcpy(g->staging + off[b], f->buf[b], f->count[b] * sizeof(float));
+        g->staging_floats = total;
+        memcpy(g->off, off, sizeof off);
     }
-    for (int b = 0; b < 6; b++) memcpy(g->staging + off[b], f->buf[b], f->count[b] * sizeof(float));
     size_t pixels = (size_t)f->width * f->height;
     int ntiles = f->tiles_x * f->tiles_y;
-    lu_result r = put(g, B_DATA, g->staging, total * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_SHADOW, f->shadow, f->shadow_count * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_SPLATS, f->splats, (size_t)f->splat_count * f->splat_bytes, err);
-    if (r == LU_OK) r = put(g, B_GBUF, f->gbuf, pixels * 32, err);
-    if (r == LU_OK) r = put(g, B_TSTART, f->tile_start, ((size_t)ntiles + 1) * sizeof(int), err);
-    if (r == LU_OK) r = put(g, B_TLIST, f->tile_list, f->list_count * sizeof(int), err);
-    if (r == LU_OK) r = put(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
-    if (r != LU_OK) return r;
+    unsigned c = f->changed;
+    lu_result r = put(g, B_DATA, g->staging, total * sizeof(float), keep_data, err);
+    if (r == LU_OK)
+        r = put(g, B_SHADOW, f->shadow, f->shadow_count * sizeof(float), !(c & LU_BSSRDF_GPU_SHADOW), err);
+    if (r == LU_OK)
+        r = put(g, B_SPLATS, f->splats, (size_t)f->splat_count * f->splat_bytes, !(c & LU_BSSRDF_GPU_SPLATS), err);
+    if (r == LU_OK) r = put(g, B_GBUF, f->gbuf, pixels * 32, !(c & LU_BSSRDF_GPU_GBUF), err);
+    if (r == LU_OK)
+        r = put(g, B_TSTART, f->tile_start, ((size_t)ntiles + 1) * sizeof(int), !(c & LU_BSSRDF_GPU_TILES), err);
+    if (r == LU_OK) r = put(g, B_TLIST, f->tile_list, f->list_count * sizeof(int), !(c & LU_BSSRDF_GPU_TILES), err);
+    if (r == LU_OK) r = put(g, B_OUT, NULL, pixels * 3 * sizeof(float), false, err);
+    if (r != LU_OK) {
+        memset(g->have, 0, sizeof g->have);
+        return r;
+    }
     for (int b = 0; b < 6; b++) {
         char name[32];
         snprintf(name, sizeof name, "u_buf_off[%d]", b);
@@ -100,7 +120,7 @@ lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, l
     lu_gpu_uniform_vec3(g->prog, "u_cam_right", f->cam_right.x, f->cam_right.y, f->cam_right.z);
     lu_gpu_uniform_vec3(g->prog, "u_cam_up", f->cam_up.x, f->cam_up.y, f->cam_up.z);
     lu_gpu_uniform_vec3(g->prog, "u_cam_forward", f->cam_forward.x, f->cam_forward.y, f->cam_forward.z);
-    if (r == LU_OK) r = put(g, B_SCATTER, NULL, pixels * 4 * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_SCATTER, NULL, pixels * 4 * sizeof(float), false, err);
     int longest = 0;
     for (int t = 0; t < ntiles; t++)
         if (f->tile_start[t + 1] - f->tile_start[t] > longest) longest = f->tile_start[t + 1] - f->tile_start[t];
@@ -113,5 +133,6 @@ lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, l
         if (last) break;
     }
     if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    if (r != LU_OK) memset(g->have, 0, sizeof g->have);
     return r;
 }

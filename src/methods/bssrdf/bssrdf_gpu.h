@@ -11,6 +11,16 @@
 
 typedef struct lu_bssrdf_gpu lu_bssrdf_gpu;
 
+/* lu_bssrdf_gpu_frame.changed: the inputs that differ from the previous
+ * frame's; the others stay on the GPU as uploaded then. */
+enum {
+    LU_BSSRDF_GPU_DATA = 1u << 0,     /* buf[] (lights, views, environment, scene constants) */
+    LU_BSSRDF_GPU_SHADOW = 1u << 1,
+    LU_BSSRDF_GPU_SPLATS = 1u << 2,
+    LU_BSSRDF_GPU_GBUF = 1u << 3,
+    LU_BSSRDF_GPU_TILES = 1u << 4,    /* tile_start and tile_list */
+};
+
 typedef struct lu_bssrdf_gpu_frame {
     const float *buf[6];        /* the LU_K_BSSRDF_BUF_* arrays */
     size_t count[6];            /* floats in each */
@@ -27,6 +37,7 @@ typedef struct lu_bssrdf_gpu_frame {
     const int *tile_list;
     size_t list_count;
     lu_vec3 cam_right, cam_up, cam_forward;   /* lu_k_camera */
+    unsigned changed;           /* LU_BSSRDF_GPU_* */
 } lu_bssrdf_gpu_frame;
 
 lu_result lu_bssrdf_gpu_create(lu_bssrdf_gpu **out, lu_error *err);

@@ -106,9 +106,23 @@ static const lu_param_desc k_params[P_COUNT] = {
 
 #define TILE 16
 
+/* Products (frame.h) and what they are built from:
+ *   ddod.set        the precomputation (media, geometry); prepare's counts as the first frame's
+ *   ddod.view_psi   the traced table's view entries (camera position, media, geometry)
+ *   ddod.light_psi  per light, its entries (the light's position or direction, media, geometry)
+ *   ddod.env_sh     the environment lights' SH (the environment lights)
+ *   ddod.pixels     per pixel: medium span and surface term (everything but nothing: still frames keep it)
+ *   ddod.bins       the samples' screen tiles (camera, sample set)
+ * passes 1 and 2 run every frame. */
 typedef struct ddod_state {
     lu_backend backend;
+    lu_ddod_params params;
+    bool use_cache;
+    int window;
     lu_ddod_set set;
+    bool set_valid, set_from_prepare;
+    uint64_t set_key;          /* lu_ddod_key of the scene prepare built the set for */
+    unsigned set_version;      /* the GPU re-uploads samples and SH when it changes */
     float *sh;                 /* windowed copy of set.sh */
     int normalize;
     lu_media_rays mr;          /* opaque objects and boundary meshes (Embree) */
@@ -118,11 +132,13 @@ typedef struct ddod_state {
     lu_k_light *kl;
     int nl;
     float *pixels, *radiance;
-    size_t pixels_cap;
+    size_t pixels_cap, samples_cap;
+    bool pixels_valid, bins_valid;
+    unsigned pixels_version, bins_version;
     lu_k_rect *rects;
     lu_tile_bins bins;
     float env[3 * LU_SH_MAX_COEFFS];
-    int env_on;
+    int env_on, env_lights;
     const lu_scene *scene;
     lu_k_camera cam;
     struct lu_k_ctx kctx;
@@ -137,7 +153,7 @@ typedef struct ddod_state {
     float *traced_tab;
     lu_k_light *tab_lights;
     bool *tab_retrace;         /* per light: retrace its entries this update */
-    int tab_nl;
+    int tab_nl, tab_count;
     lu_vec3 tab_cam;
     bool tab_view_valid, tab_lights_valid;
     unsigned tab_version;
@@ -198,6 +214,33 @@ static void env_project(const lu_light *l, int bands, float *out) {
     for (int k = 0; k < 3 * n; k++) out[k] += (float)acc[k];
 }
 
+/* The windowed copy of the set's SH. */
+static lu_result window_sh(ddod_state *st, lu_error *err) {
+    size_t n = (size_t)st->set.count * st->set.stride;
+    free(st->sh);
+    st->sh = malloc((n ? n : 1u) * sizeof *st->sh);
+    if (!st->sh) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    int nc = st->set.bands * st->set.bands;
+    for (size_t i = 0; i < n; i++) {
+        int k = (int)(i % (size_t)nc), l = (int)sqrtf((float)k);
+        st->sh[i] = st->set.sh[i] * window_weight(st->window, l, st->set.bands);
+    }
+    return LU_OK;
+}
+
+/* The environment lights' SH (ddod.env_sh). */
+static void env_update(ddod_state *st, const lu_scene *scene) {
+    memset(st->env, 0, sizeof st->env);
+    st->env_on = 0;
+    st->env_lights = 0;
+    for (int l = 0; l < scene->light_count; l++)
+        if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) {
+            env_project(&scene->lights[l], st->set.bands, st->env);
+            st->env_on = 1;
+            st->env_lights++;
+        }
+}
+
 static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                               lu_error *err) {
     ddod_state *st = calloc(1, sizeof *st);
@@ -215,24 +258,19 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
     p.width = (float)params[P_WIDTH];
     p.seed = (uint32_t)params[P_SEED];
     p.fit = (int)params[P_FIT];
+    st->params = p;
+    st->use_cache = params[P_CACHE] != 0.0;
+    st->window = (int)params[P_WINDOW];
     lu_result r = LU_OK;
     if (scene->medium_count > LU_SCENE_MAX_MEDIA)
         r = lu_fail(err, LU_ERR_LIMIT, "ddod: %d media (at most %d)", scene->medium_count, LU_SCENE_MAX_MEDIA);
-    if (r == LU_OK) r = lu_ddod_prepare_set(scene, &p, params[P_CACHE] != 0.0, &st->set, err);
+    if (r == LU_OK) r = lu_ddod_prepare_set(scene, &p, st->use_cache, &st->set, err);
+    if (r == LU_OK) r = window_sh(st, err);
     if (r == LU_OK) {
-        size_t n = (size_t)st->set.count * st->set.stride;
-        st->sh = malloc(n * sizeof *st->sh);
-        if (!st->sh) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
-        int nc = st->set.bands * st->set.bands;
-        for (size_t i = 0; r == LU_OK && i < n; i++) {
-            int k = (int)(i % (size_t)nc), l = (int)sqrtf((float)k);
-            st->sh[i] = st->set.sh[i] * window_weight((int)params[P_WINDOW], l, st->set.bands);
-        }
-        for (int l = 0; l < scene->light_count && r == LU_OK; l++)
-            if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) {
-                env_project(&scene->lights[l], st->set.bands, st->env);
-                st->env_on = 1;
-            }
+        st->set_valid = st->set_from_prepare = true;
+        st->set_key = lu_ddod_key(scene, &p);
+        st->set_version = 1;
+        env_update(st, scene);
     }
     st->eps = lu_scene_ray_epsilon(scene);
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, 16, false, err);
@@ -346,13 +384,17 @@ static bool light_moved(const lu_k_light *a, const lu_k_light *b) {
     return x.x != y.x || x.y != y.y || x.z != y.z;
 }
 
-/* Brings the traced table up to date: the view entries when the camera
- * moved, the light entries when a light moved (or the light count
- * changed); a static scene costs nothing here. */
-static lu_result update_traced(ddod_state *st, lu_error *err) {
+/* Brings the traced table up to date: every entry when the media, the
+ * geometry or the sample set changed or lights were added or removed; else
+ * the view entries when the camera moved and a light's entries when that
+ * light moved. The frame says what changed; the stored camera position and
+ * light placements narrow that to what psi reads (a light's colour, the
+ * camera's direction and field of view do not enter it). */
+static lu_result update_traced(ddod_state *st, const lu_frame *f, bool set_changed, lu_error *err) {
     st->stats.ms_traced_view = st->stats.ms_traced_lights = 0.0;
     if (!st->traced) return LU_OK;
-    bool fresh = st->tab_nl != st->nl || !st->traced_tab;
+    bool fresh = st->tab_nl != st->nl || st->tab_count != st->set.count || !st->traced_tab || set_changed ||
+                 (f->changed & (LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY));
     if (fresh) {
         size_t need = (size_t)(st->set.count ? st->set.count : 1) * (size_t)(st->nl + 1) * 4;
         float *t = realloc(st->traced_tab, need * sizeof *t);
@@ -361,37 +403,76 @@ static lu_result update_traced(ddod_state *st, lu_error *err) {
         if (t) st->traced_tab = t;
         if (pl) st->tab_lights = pl;
         if (rt) st->tab_retrace = rt;
+        st->tab_view_valid = st->tab_lights_valid = false;
         if (!t || !pl || !rt) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the traced table");
         st->tab_nl = st->nl;
+        st->tab_count = st->set.count;
     }
     st->kctx.traced = st->traced_tab;
     lu_vec3 cam = st->scene->camera.position;
     bool view = (st->traced & LU_K_DDOD_TRACED_VIEW) &&
-                (fresh || !st->tab_view_valid || cam.x != st->tab_cam.x || cam.y != st->tab_cam.y || cam.z != st->tab_cam.z);
+                (!st->tab_view_valid || ((f->changed & LU_CHANGE_CAMERA) && (cam.x != st->tab_cam.x ||
+                                                                              cam.y != st->tab_cam.y ||
+                                                                              cam.z != st->tab_cam.z)));
     /* every light on a fresh table, else only the lights that moved */
-    bool all = (st->traced & LU_K_DDOD_TRACED_LIGHTS) && (fresh || !st->tab_lights_valid), lights = all;
+    bool all = (st->traced & LU_K_DDOD_TRACED_LIGHTS) && !st->tab_lights_valid, lights = all;
+    uint64_t changed = lu_frame_kernel_lights_changed(f);
     for (int l = 0; (st->traced & LU_K_DDOD_TRACED_LIGHTS) && l < st->nl; l++) {
-        st->tab_retrace[l] = all || light_moved(&st->kl[l], &st->tab_lights[l]);
+        st->tab_retrace[l] = all || (((changed >> (l < 63 ? l : 63)) & 1u) && light_moved(&st->kl[l], &st->tab_lights[l]));
         lights = lights || st->tab_retrace[l];
     }
     if (view) {
         double t0 = lu_time_seconds();
+        st->tab_view_valid = false;
         lu_parallel_for(st->set.count, 0, traced_view_range, st, NULL);
         st->tab_cam = cam;
         st->tab_view_valid = true;
         st->stats.ms_traced_view = 1e3 * (lu_time_seconds() - t0);
         st->stats.traced_view_updates++;
+        lu_frame_rebuilt(f, "ddod.view_psi");
     }
     if (lights) {
         double t0 = lu_time_seconds();
+        st->tab_lights_valid = false;
         if (st->nl > 0) lu_parallel_for(st->set.count, 0, traced_light_range, st, NULL);
         memcpy(st->tab_lights, st->kl, (size_t)st->nl * sizeof *st->tab_lights);
         st->tab_lights_valid = true;
         st->stats.ms_traced_lights = 1e3 * (lu_time_seconds() - t0);
         st->stats.traced_light_updates++;
-        for (int l = 0; l < st->nl; l++) st->stats.traced_lights_retraced += st->tab_retrace[l];
+        for (int l = 0; l < st->nl; l++) {
+            st->stats.traced_lights_retraced += st->tab_retrace[l];
+            if (st->tab_retrace[l]) lu_frame_rebuilt(f, "ddod.light_psi");
+        }
     }
     if (view || lights) st->tab_version++;
+    return LU_OK;
+}
+
+/* The precomputation for this frame's media and geometry (ddod.set): the one
+ * prepare made when the first frame's scene is the one it was made for
+ * (same lu_ddod_key: everything the precomputation reads), else made again
+ * (through the cache, like prepare). */
+static lu_result update_set(ddod_state *st, const lu_frame *f, bool *changed, lu_error *err) {
+    *changed = false;
+    if (!lu_frame_stale(f, st->set_valid, LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY)) return LU_OK;
+    bool keep = st->set_valid && st->set_from_prepare && lu_ddod_key(f->scene, &st->params) == st->set_key;
+    st->set_from_prepare = false;
+    if (!keep) {
+        st->set_valid = false;
+        lu_ddod_set ns;
+        lu_result r = lu_ddod_prepare_set(f->scene, &st->params, st->use_cache, &ns, err);
+        if (r != LU_OK) return r;
+        lu_ddod_set_free(&st->set);
+        st->set = ns;
+        r = window_sh(st, err);
+        if (r != LU_OK) return r;
+        st->set_valid = true;
+        st->set_version++;
+        st->stats.samples = st->set.count;
+        st->stats.precompute = st->set.timing;
+        *changed = true;
+    }
+    lu_frame_rebuilt(f, "ddod.set");
     return LU_OK;
 }
 
@@ -514,32 +595,63 @@ static lu_result ddod_render(void *state, const lu_frame *frame, lu_image *out, 
     if (!kl) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     st->kl = kl;
     st->nl = lu_scene_kernel_lights(scene, kl);
+    bool set_changed = false;
+    lu_result rs = update_set(st, frame, &set_changed, err);
+    if (rs != LU_OK) return rs;
+    int envs = 0;
+    bool env = false;
+    for (int l = 0; l < scene->light_count; l++)
+        if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) envs++, env |= lu_frame_light_changed(frame, l);
+    if (env || envs != st->env_lights) {
+        env_update(st, scene);
+        lu_frame_rebuilt(frame, "ddod.env_sh");
+    }
     size_t pixels = (size_t)c->width * c->height;
-    if (pixels > st->pixels_cap || !st->radiance) {
+    if (pixels > st->pixels_cap) {
         free(st->pixels);
+        st->pixels = malloc(pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float));
+        st->pixels_cap = st->pixels ? pixels : 0;
+        st->pixels_valid = false;
+        if (!st->pixels) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %zu pixels", pixels);
+    }
+    size_t samples = st->set.count ? (size_t)st->set.count : 1u;
+    if (samples > st->samples_cap) {
         free(st->radiance);
         free(st->rects);
-        st->pixels = malloc(pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float));
-        st->radiance = malloc((size_t)(st->set.count ? st->set.count : 1) * 4 * sizeof(float));
-        st->rects = malloc((size_t)(st->set.count ? st->set.count : 1) * sizeof *st->rects);
-        st->pixels_cap = st->pixels && st->radiance && st->rects ? pixels : 0;
-        if (!st->pixels_cap) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %zu pixels", pixels);
+        st->radiance = malloc(samples * 4 * sizeof(float));
+        st->rects = malloc(samples * sizeof *st->rects);
+        st->samples_cap = st->radiance && st->rects ? samples : 0;
+        st->bins_valid = false;
+        if (!st->samples_cap) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %zu samples", samples);
     }
     st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, st->nl, st->set.samples, st->sh,
                                  st->radiance, st->pixels, st->env, st->traced_tab, NULL, NULL};
-    lu_result rt = update_traced(st, err);
+    lu_result rt = update_traced(st, frame, set_changed, err);
     if (rt != LU_OK) return rt;
     double t0 = lu_time_seconds();
-    lu_parallel_for(c->height, 1, pixel_rows, st, NULL);
-    double t1 = lu_time_seconds();
-    for (int i = 0; i < st->set.count; i++) {
-        const float *s = st->set.samples + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
-        lu_vec3 b = lu_v3(s[0], s[1], s[2]);
-        st->rects[i] = lu_k_ball_screen_rect(c->position, st->cam.right, st->cam.up, st->cam.forward, c->width, c->height,
-                                             b, LU_K_DDOD_CUTOFF * s[LU_K_DDOD_SAMPLE_S]);
+    if (lu_frame_stale(frame, st->pixels_valid, LU_CHANGE_ALL)) {
+        st->pixels_valid = false;
+        lu_parallel_for(c->height, 1, pixel_rows, st, NULL);
+        st->pixels_valid = true;
+        st->pixels_version++;
+        lu_frame_rebuilt(frame, "ddod.pixels");
     }
-    lu_result r = lu_tile_bins_build(&st->bins, c->width, c->height, TILE, st->set.count, st->rects, err);
-    if (r != LU_OK) return r;
+    double t1 = lu_time_seconds();
+    if (set_changed || lu_frame_stale(frame, st->bins_valid, LU_CHANGE_CAMERA | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY)) {
+        st->bins_valid = false;
+        for (int i = 0; i < st->set.count; i++) {
+            const float *s = st->set.samples + (size_t)i * LU_K_DDOD_SAMPLE_FLOATS;
+            lu_vec3 b = lu_v3(s[0], s[1], s[2]);
+            st->rects[i] = lu_k_ball_screen_rect(c->position, st->cam.right, st->cam.up, st->cam.forward, c->width,
+                                                 c->height, b, LU_K_DDOD_CUTOFF * s[LU_K_DDOD_SAMPLE_S]);
+        }
+        lu_result rb = lu_tile_bins_build(&st->bins, c->width, c->height, TILE, st->set.count, st->rects, err);
+        if (rb != LU_OK) return rb;
+        st->bins_valid = true;
+        st->bins_version++;
+        lu_frame_rebuilt(frame, "ddod.bins");
+    }
+    lu_result r = LU_OK;
     double t2 = lu_time_seconds();
     st->kctx.tile_start = st->bins.start;
     st->kctx.tile_list = st->bins.list;
@@ -557,8 +669,9 @@ static lu_result ddod_render(void *state, const lu_frame *frame, lu_image *out, 
     double t3 = t2;
     if (st->backend == LU_BACKEND_GPU) {
         lu_ddod_frame f = {c->width, c->height, st->bins.tiles_y, P, st->set.count, st->set.samples, st->sh,
-                           st->pixels, st->bins.start, st->bins.list, (size_t)st->bins.entries, st->env, 1u,
-                           st->traced_tab, st->nl, st->tab_version};
+                           st->pixels, st->bins.start, st->bins.list, (size_t)st->bins.entries, st->env,
+                           st->set_version, st->traced_tab, st->nl, st->tab_version, st->pixels_version,
+                           st->bins_version};
         r = lu_ddod_gpu_render(st->gpu, scene, &f, out, err);
         if (r != LU_OK) return r;
     } else {

@@ -127,6 +127,8 @@ typedef struct lu_ddod_frame {
     const float *traced;       /* P.traced != 0: count * (1 + lights) * 4 floats (methods/ddod/lu_ddod.h) */
     int lights;                /* kernel lights (environment lights excluded) */
     unsigned traced_version;   /* changes when the traced table is recomputed (GPU re-uploads) */
+    unsigned pixels_version;   /* changes when the pixel records are recomputed */
+    unsigned bins_version;     /* changes when the tile lists are recomputed */
 } lu_ddod_frame;
 
 typedef struct lu_ddod_gpu lu_ddod_gpu;

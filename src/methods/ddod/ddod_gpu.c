@@ -1,7 +1,8 @@
 /* The ddod method's GPU passes (see ddod.h): the shared GPU scene plus this
  * method's buffers at LU_SCENE_BINDING_FREE and above; samples and SH are
  * uploaded once per sample set, the traced table when the camera or a
- * light moves, the frame's pixel records and tile lists every frame. */
+ * light moves, the pixel records and tile lists when ddod.c rebuilt them
+ * (their versions in lu_ddod_frame). */
 #include <stdlib.h>
 
 #include "backends/gpu.h"
@@ -15,8 +16,8 @@ struct lu_ddod_gpu {
     lu_gpu_program *pass1, *pass2;
     lu_gpu_scene *scene;
     lu_gpu_buffer *buf[B_COUNT];
-    unsigned set_version, traced_version;
-    bool set_uploaded, traced_uploaded;
+    unsigned set_version, traced_version, pixels_version, bins_version;
+    bool set_uploaded, traced_uploaded, pixels_uploaded, bins_uploaded;
     bool loop_cap;             /* llvmpipe: loop-iteration cap applies (lu_gpu_info) */
 };
 
@@ -91,15 +92,22 @@ lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_ddo
     g->set_uploaded = r == LU_OK;
     g->set_version = f->set_version;
     if (r == LU_OK) r = lu_gpu_buffer_put(g->ctx, &g->buf[B_RADIANCE], NULL, n * 4 * sizeof(float), b0 + B_RADIANCE, err);
+    /* Pixel records and tile lists: only when ddod.c rebuilt them. */
+    bool keep_px = g->pixels_uploaded && g->pixels_version == f->pixels_version;
     if (r == LU_OK)
-        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_PIXELS], f->pixels, pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float),
-                              b0 + B_PIXELS, err);
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_PIXELS], keep_px ? NULL : f->pixels,
+                              pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float), b0 + B_PIXELS, err);
+    g->pixels_uploaded = r == LU_OK;
+    g->pixels_version = f->pixels_version;
+    bool keep_bins = g->bins_uploaded && g->bins_version == f->bins_version;
     if (r == LU_OK)
-        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_TILE_START], f->tile_start,
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_TILE_START], keep_bins ? NULL : f->tile_start,
                               ((size_t)f->P.tiles_x * f->tiles_y + 1) * sizeof(int), b0 + B_TILE_START, err);
     if (r == LU_OK)
-        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_TILE_LIST], f->tile_list, f->list_count * sizeof(int),
-                              b0 + B_TILE_LIST, err);
+        r = lu_gpu_buffer_put(g->ctx, &g->buf[B_TILE_LIST], keep_bins ? NULL : f->tile_list,
+                              f->list_count * sizeof(int), b0 + B_TILE_LIST, err);
+    g->bins_uploaded = r == LU_OK;
+    g->bins_version = f->bins_version;
     if (r == LU_OK)
         r = lu_gpu_buffer_put(g->ctx, &g->buf[B_ENV], f->P.env ? f->env_sh : NULL,
                               f->P.env ? (size_t)f->P.bands * f->P.bands * 3 * sizeof(float) : 0, b0 + B_ENV, err);
