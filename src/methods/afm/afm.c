@@ -158,8 +158,8 @@ static void lspan_rows(void *ctx, int64_t begin, int64_t end, int thread) {
                 out[4 * m + 1] = sp[2 * m + 1];
                 /* The cosines, not the Fresnel factors: eta is a medium
                  * value, so the build takes F_t and these stay geometry. */
-                out[4 * m + 2] = has_in ? lu_v3_dot(n_in, r.dir) : 2.0f;
-                out[4 * m + 3] = has_out ? lu_v3_dot(n_out, r.dir) : 2.0f;
+                out[4 * m + 2] = has_in ? lu_v3_dot(n_in, r.dir) : LU_K_AFM_NO_CROSSING;
+                out[4 * m + 3] = has_out ? lu_v3_dot(n_out, r.dir) : LU_K_AFM_NO_CROSSING;
             }
         }
     }
@@ -201,6 +201,7 @@ lu_result lu_afm_map_views(lu_afm_map *map, const lu_frame *f, const lu_media_ra
                 map->lspans = malloc(ls * sizeof(float));
                 map->lspans_cap = map->lspans ? ls : 0;
                 if (!map->lspans) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for light-ray spans");
+                views = ~0ull;    /* a new buffer keeps nothing */
             }
             for (int l = 0; l < nl; l++) {
                 if (!lu_afm_has_light(views, l)) continue;
