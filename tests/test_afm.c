@@ -13,6 +13,7 @@
 
 #include "methods/afm/afm.h"
 #include "methods/common/gpu_scene.h"
+#include "methods/frame.h"
 
 /* Exact optical depth (lu_march.h) for the procedural check. */
 struct lu_k_ctx {
@@ -46,7 +47,8 @@ static void build(built *b, const char *json, int res, int coefs, int samples) {
     for (int m = 0; m < b->scene.medium_count; m++) b->km[m] = lu_medium_to_kernel(&b->scene.media[m]);
     b->nl = lu_scene_kernel_lights(&b->scene, b->kl);
     lu_afm_map_init(&b->map, &b->scene, res, coefs, samples);
-    if (r == LU_OK) r = lu_afm_map_views(&b->map, &b->scene, &b->mr, b->kl, b->nl, &err);
+    lu_frame first = {.scene = &b->scene, .changed = LU_CHANGE_ALL, .lights_changed = ~0ull};
+    if (r == LU_OK) r = lu_afm_map_views(&b->map, &first, &b->mr, b->nl, &err);
     CHECK_OK(r, &err);
     if (r == LU_OK) r = lu_afm_map_build_cpu(&b->map, &b->scene, b->km, &err);
     CHECK_OK(r, &err);
@@ -355,7 +357,8 @@ static void test_gpu_map_matches_cpu(const char *json_path) {
     for (int m = 0; m < s.medium_count; m++) km[m] = lu_medium_to_kernel(&s.media[m]);
     int nl = lu_scene_kernel_lights(&s, kl);
     lu_afm_map_init(&map, &s, 32, 16, 64);
-    CHECK_OK(lu_afm_map_views(&map, &s, &mr, kl, nl, &err), &err);
+    lu_frame first = {.scene = &s, .changed = LU_CHANGE_ALL, .lights_changed = ~0ull};
+    CHECK_OK(lu_afm_map_views(&map, &first, &mr, nl, &err), &err);
     CHECK_OK(lu_afm_map_build_cpu(&map, &s, km, &err), &err);
     size_t n = lu_afm_map_texels(&map) * (size_t)lu_afm_map_stride(&map);
     float *gpu_rec = calloc(n, sizeof(float));

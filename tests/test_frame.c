@@ -104,6 +104,12 @@ static const product k_products[] = {
     {"ddod.light_psi", LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY, true},
     {"ddod.pixels", LU_CHANGE_ALL, false},
     {"ddod.bins", LU_CHANGE_CAMERA | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY, false},
+    /* afm: a light's views frame the media's box from the light, and its
+     * light-ray spans are where those rays cross the boundary meshes */
+    {"afm.views", LU_CHANGE_GEOMETRY, true},
+    /* a light's attenuation maps: the transmittance along its views' rays
+     * through the media (density, coefficients, boundary Fresnel) */
+    {"afm.maps", LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY, true},
 };
 #define PRODUCTS ((int)(sizeof k_products / sizeof k_products[0]))
 
@@ -196,6 +202,10 @@ static void test_view_march_methods_cpu(void) {
     static const char *const scenes[] = {"demo.json", "smoke_box.json"};
     for (int s = 0; s < 2; s++)
         for (int m = 0; m < 5; m++) run_sequence(scenes[s], methods[m], LU_BACKEND_CPU, k_cheap);
+    /* a bounded medium (afm's light-ray spans and boundary crossings) lit by
+     * a point light (six views) and a directional light (one) */
+    run_sequence("layered_cube.json", "afm", LU_BACKEND_CPU, k_cheap);
+    run_sequence("layered_cube.json", "raymarch", LU_BACKEND_CPU, k_cheap);
 }
 
 static void test_view_march_methods_gpu(void) {
@@ -208,6 +218,7 @@ static void test_view_march_methods_gpu(void) {
     lu_gpu_context_destroy(ctx);
     static const char *const methods[] = {"raymarch", "afm", "gradient"};
     for (int m = 0; m < 3; m++) run_sequence("demo.json", methods[m], LU_BACKEND_GPU, k_cheap);
+    run_sequence("layered_cube.json", "afm", LU_BACKEND_GPU, k_cheap);
 }
 
 /* Translucent objects: bssrdf on its spheres (no media: the density and

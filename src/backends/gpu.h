@@ -172,6 +172,18 @@ lu_result lu_gpu_buffer_bind(lu_gpu_buffer *buf, int binding, lu_error *err);
  * and binds it at `binding`. */
 lu_result lu_gpu_buffer_put(lu_gpu_context *ctx, lu_gpu_buffer **slot, const void *data, size_t bytes, int binding,
                             lu_error *err);
+/* What a slot of lu_gpu_buffer_put_versioned holds: `bytes` bytes of the
+ * version `version` of its CPU product (valid: an upload succeeded). */
+typedef struct lu_gpu_upload {
+    unsigned version;
+    size_t bytes;
+    bool valid;
+} lu_gpu_upload;
+/* lu_gpu_buffer_put of a CPU product that carries a version (a counter its
+ * builder bumps on every rebuild): uploads only when *up says the slot holds
+ * another version or size, so a kept product crosses the bus once. */
+lu_result lu_gpu_buffer_put_versioned(lu_gpu_context *ctx, lu_gpu_buffer **slot, lu_gpu_upload *up, const void *data,
+                                      size_t bytes, unsigned version, int binding, lu_error *err);
 
 /* ---- textures and images ----------------------------------------------------
  * Density grids: GL_R32F 3D textures with GL_LINEAR filtering and

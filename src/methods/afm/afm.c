@@ -11,10 +11,12 @@
  * media (raymarch's march, lu_view_march.h) and read the light's reduced
  * intensity from the maps instead of marching towards the light.
  *
- * What is rebuilt when: the attenuation maps every frame (light, view and
- * medium are all dynamic); the Embree inputs (camera hits and spans, shadow
- * maps, light-ray boundary spans) when the camera or the lights change,
- * since they depend on geometry only. */
+ * What is rebuilt when (the frame stage, methods/frame.h): camera hits and
+ * spans with the camera; shadow maps, light views and light-ray spans with
+ * the lights; the attenuation maps with the lights and the media. A change
+ * of some lights rebuilds only their views, spans and maps (each light's
+ * views are a contiguous run of the map, view_table), so a camera orbit
+ * marches the views against kept maps. */
 #include <lucent/lucent.h>
 
 #include <stdlib.h>
@@ -48,7 +50,8 @@ struct lu_k_ctx {
 #include "methods/common/view_march_hooks.h"
 
 static inline float lu_k_afm_lspan(const struct lu_k_ctx *c, int texel, int m, int k) {
-    if (!c->map->bounded) return k == 1 ? LU_K_FAR : (k == 0 ? 0.0f : 1.0f);
+    /* unbounded: the whole ray, no crossing (2 = LU_K_AFM_NO_CROSSING) */
+    if (!c->map->bounded) return k == 1 ? LU_K_FAR : (k == 0 ? 0.0f : 2.0f);
     return c->map->lspans[((size_t)texel * c->nm + m) * LU_AFM_LSPAN_FLOATS + k];
 }
 static inline void lu_k_afm_store(const struct lu_k_ctx *c, int texel, int i, float v) {
@@ -98,19 +101,24 @@ static lu_k_afm_params map_params(const lu_afm_map *map) {
 size_t lu_afm_map_texels(const lu_afm_map *map) { return (size_t)map->view_count * map->res * map->res; }
 int lu_afm_map_stride(const lu_afm_map *map) { return lu_k_afm_stride(map_params(map)); }
 
+/* 1 when every medium's sigma_t is grey, else 3. */
+static int map_channels(const lu_scene *scene) {
+    for (int m = 0; m < scene->medium_count; m++) {
+        lu_vec3 st = lu_v3_add(scene->media[m].sigma_a, scene->media[m].sigma_s);
+        if (st.x != st.y || st.y != st.z) return 3;
+    }
+    return 1;
+}
+
 void lu_afm_map_init(lu_afm_map *map, const lu_scene *scene, int res, int coefs, int samples) {
     memset(map, 0, sizeof *map);
     map->res = res;
     map->coefs = coefs;
     map->samples = samples;
     map->nm = scene->medium_count;
-    map->channels = 1;
-    for (int m = 0; m < scene->medium_count; m++) {
-        const lu_medium *md = &scene->media[m];
-        lu_vec3 st = lu_v3_add(md->sigma_a, md->sigma_s);
-        if (st.x != st.y || st.y != st.z) map->channels = 3;
-        if (md->has_boundary) map->bounded = true;
-    }
+    map->channels = map_channels(scene);
+    for (int m = 0; m < scene->medium_count; m++)
+        if (scene->media[m].has_boundary) map->bounded = true;
 }
 
 void lu_afm_map_free(lu_afm_map *map) {
@@ -119,14 +127,13 @@ void lu_afm_map_free(lu_afm_map *map) {
     free(map->view_table);
     free(map->lspans);
     free(map->records);
-    free(map->lights);
     memset(map, 0, sizeof *map);
 }
 
 typedef struct lspan_job {
     lu_afm_map *map;
-    const lu_scene *scene;
     const lu_media_rays *mr;
+    int view0;                    /* rows start at this view's first row */
 } lspan_job;
 
 /* Light-ray spans of the bounded media, one row of one view per job index. */
@@ -136,64 +143,94 @@ static void lspan_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     lu_afm_map *map = j->map;
     int res = map->res, nm = map->nm;
     float sp[2 * LU_K_RM_MAX_MEDIA], nrm[LU_MR_NORMAL_FLOATS * LU_K_RM_MAX_MEDIA];
-    for (int64_t row = begin; row < end; row++) {
+    for (int64_t row = begin + (int64_t)j->view0 * res; row < end + (int64_t)j->view0 * res; row++) {
         int v = (int)(row / res), y = (int)(row % res);
         for (int x = 0; x < res; x++) {
             lu_k_lightray r = lu_k_lightview_ray(map->views[v], ((float)x + 0.5f) / (float)res, ((float)y + 0.5f) / (float)res);
             lu_media_ray_spans(j->mr, r.origin, r.dir, LU_K_FAR, sp, nrm);
             float *out = map->lspans + ((size_t)row * res + x) * nm * LU_AFM_LSPAN_FLOATS;
             for (int m = 0; m < nm; m++) {
-                float eta = j->scene->media[m].eta;
                 lu_vec3 n_in, n_out;
                 memcpy(&n_in, nrm + m * LU_MR_NORMAL_FLOATS, 12);
                 memcpy(&n_out, nrm + m * LU_MR_NORMAL_FLOATS + 3, 12);
                 bool has_in = lu_v3_dot(n_in, n_in) > 0.0f, has_out = lu_v3_dot(n_out, n_out) > 0.0f;
                 out[4 * m] = sp[2 * m];
                 out[4 * m + 1] = sp[2 * m + 1];
-                /* Unpolarised Fresnel transmittance at each crossing, as the
-                 * reference's shadow rays (the cosine's sign does not matter). */
-                out[4 * m + 2] = has_in ? lu_k_fresnel_transmittance(lu_v3_dot(n_in, r.dir), eta) : 1.0f;
-                out[4 * m + 3] = has_out ? lu_k_fresnel_transmittance(lu_v3_dot(n_out, r.dir), eta) : 1.0f;
+                /* The cosines, not the Fresnel factors: eta is a medium
+                 * value, so the build takes F_t and these stay geometry. */
+                out[4 * m + 2] = has_in ? lu_v3_dot(n_in, r.dir) : LU_K_AFM_NO_CROSSING;
+                out[4 * m + 3] = has_out ? lu_v3_dot(n_out, r.dir) : LU_K_AFM_NO_CROSSING;
             }
         }
     }
 }
 
-lu_result lu_afm_map_views(lu_afm_map *map, const lu_scene *scene, const lu_media_rays *mr, const lu_k_light *kl,
-                           int nl, lu_error *err) {
-    if (map->views_valid && nl == map->nl && memcmp(map->lights, kl, (size_t)nl * sizeof *kl) == 0) return LU_OK;
-    size_t nls = nl ? (size_t)nl : 1u;
-    free(map->lights);
-    map->views_valid = false;
-    map->lights = malloc(nls * sizeof *map->lights);
-    if (!map->lights) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for light views");
-    /* Cube faces get a guard band of 1.5 texels: a point near a face edge is
-     * then interpolated from its own face's texels, so either face answers
-     * alike where rounding could pick one or the other. */
-    lu_result r = lu_lightviews_for_scene(scene, lu_scene_media_bounds(scene), 1.0f + 3.0f / (float)map->res,
-                                          &map->views, &map->views_packed, &map->view_table, &map->view_count, err);
-    if (r != LU_OK) return r;
-    size_t texels = lu_afm_map_texels(map);
-    if (map->bounded) {
-        size_t ls = (texels ? texels : 1u) * (size_t)map->nm * LU_AFM_LSPAN_FLOATS;
-        if (ls > map->lspans_cap) {
-            free(map->lspans);
-            map->lspans = malloc(ls * sizeof(float));
-            map->lspans_cap = map->lspans ? ls : 0;
-            if (!map->lspans) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for light-ray spans");
-        }
-        lspan_job j = {map, scene, mr};
-        lu_parallel_for((int64_t)map->view_count * map->res, 4, lspan_rows, &j, NULL);
+lu_result lu_afm_map_views(lu_afm_map *map, const lu_frame *f, const lu_media_rays *mr, int nl, lu_error *err) {
+    const lu_scene *scene = f->scene;
+    uint64_t maps = 0;
+    if (!map->maps_valid || (f->changed & (LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY))) maps = ~0ull;
+    if ((f->changed & LU_CHANGE_MEDIA) && map_channels(scene) != map->channels) {
+        map->channels = map_channels(scene);
+        maps = ~0ull;
     }
-    if (nl) memcpy(map->lights, kl, (size_t)nl * sizeof *kl);
-    map->nl = nl;
-    map->views_valid = true;
-    map->version++;
+    uint64_t views = ~0ull;
+    if (map->views_valid && nl == map->nl && !(f->changed & LU_CHANGE_GEOMETRY)) views = lu_frame_kernel_lights_changed(f);
+    if (views) {
+        map->views_valid = false;
+        map->maps_valid = false;
+        /* Every light's views are remade (a few multiplies each): a light
+         * that did not change gets the views it had. */
+        int *old_table = map->view_table, old_count = map->view_count;
+        map->view_table = NULL;
+        /* Cube faces get a guard band of 1.5 texels: a point near a face edge is
+         * then interpolated from its own face's texels, so either face answers
+         * alike where rounding could pick one or the other. */
+        lu_result r = lu_lightviews_for_scene(scene, lu_scene_media_bounds(scene), 1.0f + 3.0f / (float)map->res,
+                                              &map->views, &map->views_packed, &map->view_table, &map->view_count, err);
+        /* A light that now has another number of views moves the others'. */
+        if (r != LU_OK || !old_table || nl != map->nl || old_count != map->view_count ||
+            memcmp(old_table, map->view_table, (size_t)nl * 2 * sizeof *old_table) != 0)
+            views = ~0ull;
+        free(old_table);
+        if (r != LU_OK) return r;
+        size_t texels = lu_afm_map_texels(map);
+        if (map->bounded) {
+            size_t ls = (texels ? texels : 1u) * (size_t)map->nm * LU_AFM_LSPAN_FLOATS;
+            if (ls > map->lspans_cap) {
+                free(map->lspans);
+                map->lspans = malloc(ls * sizeof(float));
+                map->lspans_cap = map->lspans ? ls : 0;
+                if (!map->lspans) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for light-ray spans");
+                views = ~0ull;    /* a new buffer keeps nothing */
+            }
+            for (int l = 0; l < nl; l++) {
+                if (!lu_afm_has_light(views, l)) continue;
+                lspan_job j = {map, mr, map->view_table[2 * l]};
+                lu_parallel_for((int64_t)map->view_table[2 * l + 1] * map->res, 4, lspan_rows, &j, NULL);
+            }
+        }
+        map->nl = nl;
+        map->views_valid = true;
+        map->version++;
+        for (int l = 0; l < nl; l++)
+            if (lu_afm_has_light(views, l)) lu_frame_rebuilt(f, "afm.views");
+        maps |= views;
+    }
+    if (maps) map->maps_valid = false;
+    map->rebuild = maps;
     return LU_OK;
+}
+
+void lu_afm_map_built(lu_afm_map *map, const lu_frame *f) {
+    for (int l = 0; l < map->nl; l++)
+        if (lu_afm_has_light(map->rebuild, l)) lu_frame_rebuilt(f, "afm.maps");
+    map->rebuild = 0;
+    map->maps_valid = true;
 }
 
 typedef struct build_job {
     struct lu_k_ctx ctx;
+    int view0;                    /* rows start at this view's first row */
 } build_job;
 
 static void build_rows(void *vctx, int64_t begin, int64_t end, int thread) {
@@ -201,7 +238,7 @@ static void build_rows(void *vctx, int64_t begin, int64_t end, int thread) {
     build_job *j = vctx;
     const lu_afm_map *map = j->ctx.map;
     int res = map->res;
-    for (int64_t row = begin; row < end; row++) {
+    for (int64_t row = begin + (int64_t)j->view0 * res; row < end + (int64_t)j->view0 * res; row++) {
         int v = (int)(row / res), y = (int)(row % res);
         for (int x = 0; x < res; x++)
             lu_k_afm_build_texel(&j->ctx, lu_k_afm_params_get(&j->ctx), map->views[v], (int)(row * res + x), x, y);
@@ -223,6 +260,9 @@ lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_
         map->records = malloc(need * sizeof(float));
         map->records_cap = map->records ? need : 0;
         if (!map->records) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for %zu map texels", texels);
+        /* nothing is kept in a new buffer (the stage rebuilds everything
+         * when the layout or the stride changed, so this is a first build) */
+        map->rebuild = ~0ull;
     }
     build_job j;
     memset(&j, 0, sizeof j);
@@ -230,7 +270,11 @@ lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_
     j.ctx.km = km;
     j.ctx.nm = scene->medium_count;
     ctx_set_map(&j.ctx, map);
-    lu_parallel_for((int64_t)map->view_count * map->res, 1, build_rows, &j, NULL);
+    for (int l = 0; l < map->nl; l++) {
+        if (!lu_afm_has_light(map->rebuild, l)) continue;
+        j.view0 = map->view_table[2 * l];
+        lu_parallel_for((int64_t)map->view_table[2 * l + 1] * map->res, 1, build_rows, &j, NULL);
+    }
     return LU_OK;
 }
 
@@ -269,6 +313,7 @@ typedef struct afm_state {
     lu_k_medium *km;
     lu_k_light *kl;
     float *surfaces;
+    unsigned surfaces_version;      /* changes whenever the media (their boundary surfaces) changed */
     float eps;
     lu_view_march_frame frame;
     const lu_scene *scene;
@@ -383,6 +428,7 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     st->out = out;
     const lu_camera *c = &scene->camera;
     st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
+    if (frame->changed & LU_CHANGE_MEDIA) st->surfaces_version++;
     for (int m = 0; m < scene->medium_count; m++) {
         st->km[m] = lu_medium_to_kernel(&scene->media[m]);
         const lu_material *s = &scene->media[m].surface;
@@ -399,18 +445,21 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, nl, err);
     if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, nl, st->eps, err);
-    if (r == LU_OK) r = lu_afm_map_views(&st->map, scene, &st->mr, kl, nl, err);
+    if (r == LU_OK) r = lu_afm_map_views(&st->map, frame, &st->mr, nl, err);
     if (r != LU_OK) return r;
 
     lu_view_march_frame *f = &st->frame;
     lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl);
     if (st->backend == LU_BACKEND_GPU) {
-        lu_afm_gpu_frame g = {&st->mr, &st->map, st->surfaces, scene->background, f->step, f->eps, st->jitter,
-                              st->mr.shadow_res, nl};
-        return lu_afm_gpu_render(st->gpu, scene, &g, out, err);
+        lu_afm_gpu_frame g = {&st->mr, &st->map, st->surfaces, st->surfaces_version, scene->background, f->step,
+                              f->eps, st->jitter, st->mr.shadow_res, nl};
+        r = lu_afm_gpu_render(st->gpu, scene, &g, out, err);
+        if (r == LU_OK) lu_afm_map_built(&st->map, frame);
+        return r;
     }
     r = lu_afm_map_build_cpu(&st->map, scene, st->km, err);
     if (r != LU_OK) return r;
+    lu_afm_map_built(&st->map, frame);
     memset(&st->kctx, 0, sizeof st->kctx);
     st->kctx.media = scene->media;
     st->kctx.km = st->km;

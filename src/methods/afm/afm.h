@@ -12,7 +12,8 @@
 
 /* Floats per medium of a boundary surface record: albedo, shininess, specular, pad. */
 #define LU_AFM_SURFACE_FLOATS 8
-/* Floats per texel and medium of the light-ray spans: start, end, F_t at start, F_t at end. */
+/* Floats per texel and medium of the light-ray spans: start, end, and the
+ * cosines at the boundary crossings there (lu_k_afm_lspan in lu_afm.h). */
 #define LU_AFM_LSPAN_FLOATS 4
 
 typedef struct lu_afm_map {
@@ -27,26 +28,39 @@ typedef struct lu_afm_map {
     float *lspans;              /* view_count * res^2 * nm * LU_AFM_LSPAN_FLOATS (bounded only) */
     float *records;             /* view_count * res^2 * stride: what the map build writes */
     size_t records_cap, lspans_cap;
-    lu_k_light *lights;         /* lights the views and lspans were made for */
-    bool views_valid;
+    /* Each product is rebuilt only when the frame (methods/frame.h) changed
+     * what it depends on, and per light when only some lights changed:
+     *   views and light-ray spans ("afm.views"): lights, geometry;
+     *   maps ("afm.maps"): lights, media, geometry. */
+    bool views_valid, maps_valid;
     unsigned version;           /* changes whenever views/lspans change */
+    uint64_t rebuild;           /* kernel lights (bit l; bit 63: 63 and up) whose maps this frame builds */
 } lu_afm_map;
+
+/* Bit l of a kernel-light set such as lu_afm_map.rebuild (bit 63 stands for lights 63 and up). */
+static inline bool lu_afm_has_light(uint64_t set, int l) { return (set >> (l < 63 ? l : 63)) & 1u; }
 
 /* Map settings from the method's parameters; channels follow the media
  * (1 when every medium's sigma_t is grey, else 3). */
 void lu_afm_map_init(lu_afm_map *map, const lu_scene *scene, int res, int coefs, int samples);
 void lu_afm_map_free(lu_afm_map *map);
 
-/* Light views over the media's box and, for bounded media, the light rays'
- * boundary spans and Fresnel factors (Embree through mr's boundary
- * accelerations). Kept while the lights do not change. */
-lu_result lu_afm_map_views(lu_afm_map *map, const lu_scene *scene, const lu_media_rays *mr, const lu_k_light *kl,
-                           int nl, lu_error *err);
+/* Light views over the media's box for the frame's nl kernel lights and,
+ * for bounded media, the light rays' boundary spans and crossing cosines
+ * (Embree through mr's boundary accelerations), rebuilt for the lights
+ * whose inputs changed; sets map->rebuild to the lights whose maps must be
+ * built this frame (their views changed, or the media did). */
+lu_result lu_afm_map_views(lu_afm_map *map, const lu_frame *f, const lu_media_rays *mr, int nl, lu_error *err);
+
+/* After the backend built the map->rebuild lights' maps: counts the
+ * rebuilds ("afm.maps", one per light) and keeps the maps. */
+void lu_afm_map_built(lu_afm_map *map, const lu_frame *f);
 
 /* Views (all lights) the scene's non-environment lights need: 6 per point light. */
 int lu_afm_view_count(const lu_scene *scene);
 
-/* The map's records on the CPU (kernel lu_k_afm_build_texel per texel). */
+/* The records of the map->rebuild lights' views on the CPU (kernel
+ * lu_k_afm_build_texel per texel); the other views' records are kept. */
 lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km, lu_error *err);
 
 /* Transmittance from kernel light l to x looked up in a CPU-built map. */
@@ -62,17 +76,21 @@ typedef struct lu_afm_gpu_frame {
     const lu_media_rays *mr;    /* camera hits/spans/normals, shadow views and maps */
     const lu_afm_map *map;      /* views, lspans (records are built on the GPU) */
     const float *surfaces;      /* nm * LU_AFM_SURFACE_FLOATS */
+    unsigned surfaces_version;  /* changes whenever surfaces do */
     lu_vec3 background;
     float step, eps;
     int jitter, shadow_res, nl;
 } lu_afm_gpu_frame;
 
 lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *err);
+/* Builds the map->rebuild lights' maps on the GPU, then renders; each CPU
+ * input is uploaded only when it changed (its media-rays or map version). */
 lu_result lu_afm_gpu_render(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_gpu_frame *f, lu_image *out,
                             lu_error *err);
 void lu_afm_gpu_destroy(lu_afm_gpu *g);
-/* Builds only the maps (afm_build.comp) for map's views and downloads the
- * records into `records` (lu_afm_map_texels * lu_afm_map_stride floats). */
+/* Builds only the maps (afm_build.comp) of the map->rebuild lights' views
+ * and downloads all records into `records` (lu_afm_map_texels *
+ * lu_afm_map_stride floats). */
 lu_result lu_afm_gpu_build_download(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_map *map, float *records,
                                     lu_error *err);
 /* The device's largest storage buffer (bytes), which bounds the map's

@@ -1,7 +1,8 @@
 /* afm_build.comp — builds the attenuation function maps on the GPU: one
  * invocation per texel (x, y) of view z, running lu_k_afm_build_texel
  * (methods/afm/lu_afm.h) over the shared GPU scene. The light-ray boundary
- * spans and Fresnel factors of bounded media come from the CPU (Embree). */
+ * spans of bounded media and the cosines at their crossings come from the
+ * CPU (Embree). */
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "kernels/lu_scene_gpu.glsl"
@@ -20,7 +21,8 @@ uniform int u_bounded;
 uniform int u_view0;   /* first view of this dispatch (chunks keep dispatches short) */
 
 float lu_k_afm_lspan(LU_CTX_PARAM, int texel, int m, int k) {
-    if (u_bounded == 0) return k == 1 ? LU_K_FAR : (k == 0 ? 0.0 : 1.0);
+    /* unbounded: the whole ray, no crossing (2.0 = LU_K_AFM_NO_CROSSING) */
+    if (u_bounded == 0) return k == 1 ? LU_K_FAR : (k == 0 ? 0.0 : 2.0);
     return afm_lspans[(texel * lu_scene_medium_count() + m) * 4 + k];
 }
 void lu_k_afm_store(LU_CTX_PARAM, int texel, int i, float v) {

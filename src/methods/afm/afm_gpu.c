@@ -21,9 +21,9 @@ struct lu_afm_gpu {
     lu_gpu_program *build, *render;
     lu_gpu_scene *scene;
     lu_gpu_buffer *buf[R_COUNT];
+    lu_gpu_upload up[R_COUNT];      /* what each slot holds (versions of the CPU products) */
     lu_gpu_buffer *lspans;
-    unsigned shadow_version, map_version;
-    bool shadow_up, map_up;
+    lu_gpu_upload lspans_up;
 };
 
 lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *err) {
@@ -64,6 +64,12 @@ static lu_result put(lu_afm_gpu *g, lu_gpu_buffer **slot, const void *data, size
     return lu_gpu_buffer_put(g->ctx, slot, data, bytes, LU_SCENE_BINDING_FREE + binding, err);
 }
 
+/* Render slot i, uploaded only when its product's version changed. */
+static lu_result put_kept(lu_afm_gpu *g, int i, const void *data, size_t bytes, unsigned version, lu_error *err) {
+    return lu_gpu_buffer_put_versioned(g->ctx, &g->buf[i], &g->up[i], data, bytes, version, LU_SCENE_BINDING_FREE + i,
+                                       err);
+}
+
 static void set_map_uniforms(lu_gpu_program *p, const lu_afm_map *map) {
     lu_gpu_uniform_int(p, "u_res", map->res);
     lu_gpu_uniform_int(p, "u_coefs", map->coefs);
@@ -71,28 +77,36 @@ static void set_map_uniforms(lu_gpu_program *p, const lu_afm_map *map) {
     lu_gpu_uniform_int(p, "u_channels", map->channels);
 }
 
+/* The records of the map->rebuild lights' views; the other views' records
+ * stay in the buffer from earlier frames. */
 static lu_result build_maps(lu_afm_gpu *g, const lu_afm_map *map, lu_error *err) {
     size_t texels = lu_afm_map_texels(map);
     size_t rec_bytes = texels * (size_t)lu_afm_map_stride(map) * sizeof(float);
+    uint64_t lights = map->rebuild;
+    /* A new (larger) records buffer keeps nothing. The map asks for every
+     * light whenever its layout or stride changed, so this is a first build. */
+    if (!g->buf[R_RECORDS] || lu_gpu_buffer_size(g->buf[R_RECORDS]) < rec_bytes) lights = ~0ull;
     lu_result r = lu_gpu_scene_bind(g->scene, err);
-    bool same = g->map_up && g->map_version == map->version;
     if (r == LU_OK)
-        r = put(g, &g->buf[R_AVIEWS], same ? NULL : map->views_packed,
-                (size_t)map->view_count * LU_RM_VIEW_FLOATS * sizeof(float), B_AVIEWS, err);
+        r = lu_gpu_buffer_put_versioned(g->ctx, &g->buf[R_AVIEWS], &g->up[R_AVIEWS], map->views_packed,
+                                        (size_t)map->view_count * LU_RM_VIEW_FLOATS * sizeof(float), map->version,
+                                        LU_SCENE_BINDING_FREE + B_AVIEWS, err);
     if (r == LU_OK && map->bounded)
-        r = put(g, &g->lspans, same ? NULL : map->lspans,
-                texels * (size_t)map->nm * LU_AFM_LSPAN_FLOATS * sizeof(float), B_LSPANS, err);
+        r = lu_gpu_buffer_put_versioned(g->ctx, &g->lspans, &g->lspans_up, map->lspans,
+                                        texels * (size_t)map->nm * LU_AFM_LSPAN_FLOATS * sizeof(float), map->version,
+                                        LU_SCENE_BINDING_FREE + B_LSPANS, err);
     if (r == LU_OK && !map->bounded) r = put(g, &g->lspans, NULL, 16, B_LSPANS, err);
     if (r == LU_OK) r = put(g, &g->buf[R_RECORDS], NULL, rec_bytes, B_RECORDS, err);
     if (r != LU_OK) return r;
-    g->map_up = true;
-    g->map_version = map->version;
     set_map_uniforms(g->build, map);
     lu_gpu_uniform_int(g->build, "u_bounded", map->bounded ? 1 : 0);
     unsigned groups = (unsigned)(map->res + 7) / 8;
-    for (int v = 0; v < map->view_count && r == LU_OK; v++) {
-        lu_gpu_uniform_int(g->build, "u_view0", v);
-        r = lu_gpu_dispatch(g->build, groups, groups, 1, err);
+    for (int l = 0; l < map->nl && r == LU_OK; l++) {
+        if (!lu_afm_has_light(lights, l)) continue;
+        for (int v = map->view_table[2 * l]; v < map->view_table[2 * l] + map->view_table[2 * l + 1] && r == LU_OK; v++) {
+            lu_gpu_uniform_int(g->build, "u_view0", v);
+            r = lu_gpu_dispatch(g->build, groups, groups, 1, err);
+        }
     }
     return r;
 }
@@ -108,30 +122,30 @@ lu_result lu_afm_gpu_render(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_g
     lu_result r = lu_gpu_scene_update(g->scene, scene, err);
     if (r == LU_OK) r = build_maps(g, map, err);
     /* render pass */
+    /* Each CPU input crosses the bus only in the frame its product was
+     * rebuilt: camera rays (hits_version), shadow views and maps
+     * (maps_version), surface visibility (vis_version), afm views (version). */
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
-    if (r == LU_OK) r = put(g, &g->buf[R_HITS], mr->hits, pixels * LU_MR_HIT_FLOATS * sizeof(float), R_HITS, err);
-    if (r == LU_OK) r = put(g, &g->buf[R_SPANS], mr->spans, pixels * nm * 2 * sizeof(float), R_SPANS, err);
+    if (r == LU_OK) r = put_kept(g, R_HITS, mr->hits, pixels * LU_MR_HIT_FLOATS * sizeof(float), mr->hits_version, err);
+    if (r == LU_OK) r = put_kept(g, R_SPANS, mr->spans, pixels * nm * 2 * sizeof(float), mr->hits_version, err);
     if (r == LU_OK)
-        r = put(g, &g->buf[R_VIEWS], mr->views_packed, (size_t)mr->view_count * LU_RM_VIEW_FLOATS * sizeof(float),
-                R_VIEWS, err);
-    if (r == LU_OK) r = put(g, &g->buf[R_TABLE], mr->view_table, (size_t)f->nl * 2 * sizeof(int), R_TABLE, err);
-    if (r == LU_OK) {
-        /* Shadow maps only change with the lights: skip the upload when the CPU kept them. */
-        bool same = g->shadow_up && g->shadow_version == mr->maps_version;
-        r = put(g, &g->buf[R_SHADOW], same ? NULL : mr->shadow, (size_t)mr->view_count * shadow_texels * sizeof(float),
-                R_SHADOW, err);
-        g->shadow_up = r == LU_OK;
-        g->shadow_version = mr->maps_version;
-    }
+        r = put_kept(g, R_VIEWS, mr->views_packed, (size_t)mr->view_count * LU_RM_VIEW_FLOATS * sizeof(float),
+                     mr->maps_version, err);
+    if (r == LU_OK) r = put_kept(g, R_TABLE, mr->view_table, (size_t)f->nl * 2 * sizeof(int), mr->maps_version, err);
     if (r == LU_OK)
-        r = put(g, &g->buf[R_NORMALS], mr->normals, pixels * nm * LU_MR_NORMAL_FLOATS * sizeof(float), R_NORMALS, err);
+        r = put_kept(g, R_SHADOW, mr->shadow, (size_t)mr->view_count * shadow_texels * sizeof(float), mr->maps_version,
+                     err);
+    if (r == LU_OK)
+        r = put_kept(g, R_NORMALS, mr->normals, pixels * nm * LU_MR_NORMAL_FLOATS * sizeof(float), mr->hits_version,
+                     err);
     if (r == LU_OK) r = lu_gpu_buffer_bind(g->buf[R_AVIEWS], LU_SCENE_BINDING_FREE + R_AVIEWS, err);
-    if (r == LU_OK) r = put(g, &g->buf[R_ATABLE], map->view_table, (size_t)f->nl * 2 * sizeof(int), R_ATABLE, err);
+    if (r == LU_OK) r = put_kept(g, R_ATABLE, map->view_table, (size_t)f->nl * 2 * sizeof(int), map->version, err);
     if (r == LU_OK) r = lu_gpu_buffer_bind(g->buf[R_RECORDS], LU_SCENE_BINDING_FREE + R_RECORDS, err);
-    if (r == LU_OK) r = put(g, &g->buf[R_SURFACES], f->surfaces, nm * LU_AFM_SURFACE_FLOATS * sizeof(float), R_SURFACES, err);
+    if (r == LU_OK)
+        r = put_kept(g, R_SURFACES, f->surfaces, nm * LU_AFM_SURFACE_FLOATS * sizeof(float), f->surfaces_version, err);
     if (r == LU_OK) r = put(g, &g->buf[R_OUT], NULL, pixels * 3 * sizeof(float), R_OUT, err);
     if (r == LU_OK)
-        r = put(g, &g->buf[R_SURFVIS], mr->surface_vis, pixels * (size_t)f->nl * sizeof(float), R_SURFVIS, err);
+        r = put_kept(g, R_SURFVIS, mr->surface_vis, pixels * (size_t)f->nl * sizeof(float), mr->vis_version, err);
     if (r != LU_OK) return r;
     lu_gpu_program *p = g->render;
     set_map_uniforms(p, map);

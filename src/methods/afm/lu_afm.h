@@ -34,7 +34,10 @@
  *   build:  float lu_k_afm_lspan(LU_CTX_PARAM, int texel, int m, int k)
  *             k 0/1: start/end of medium m's first span on the texel's light ray
  *             (boundary mesh, from the CPU's ray tracer; unbounded: 0, LU_K_FAR),
- *             k 2/3: Fresnel transmittance at that start/end (1 without a boundary);
+ *             k 2/3: cosine between the ray and the boundary's normal at that
+ *             start/end, or LU_K_AFM_NO_CROSSING where the span does not end on
+ *             the boundary (the Fresnel factor is taken here with the medium's
+ *             eta, so the spans depend on geometry and lights only);
  *           void lu_k_afm_store(LU_CTX_PARAM, int texel, int i, float value);
  *   lookup: float lu_k_afm_fetch(LU_CTX_PARAM, int texel, int i);
  *           int lu_k_afm_view_first(LU_CTX_PARAM, int l), lu_k_afm_view_count(LU_CTX_PARAM, int l);
@@ -69,6 +72,8 @@
 #define LU_K_AFM_MAX_COEFS 64
 #define LU_K_AFM_MAX_SAMPLES 4096
 #define LU_K_AFM_HEADER 6
+/* Light-span cosine of a span end that is not a boundary crossing (|cos| <= 1 otherwise). */
+#define LU_K_AFM_NO_CROSSING 2.0f
 
 struct lu_k_afm_params {
     int res;        /* map resolution (res x res texels per view) */
@@ -96,6 +101,14 @@ LU_FN int lu_k_afm_stride(lu_k_afm_params P) { return LU_K_AFM_HEADER + P.coefs 
 LU_FN float lu_k_dct_norm(int k, int samples) { return (k == 0 ? 1.0f : 2.0f) / lu_float(samples); }
 
 /* ---- map build ---- */
+
+/* Unpolarised Fresnel transmittance where the texel's light ray crosses
+ * medium m's boundary at span end k (2: start, 3: end), as the reference's
+ * shadow rays (the cosine's sign does not matter); 1 without a crossing. */
+LU_FN float lu_k_afm_crossing(LU_CTX_PARAM, int texel, int m, int k) {
+    float c = lu_k_afm_lspan(LU_CTX, texel, m, k);
+    return c == LU_K_AFM_NO_CROSSING ? 1.0f : lu_k_fresnel_transmittance(c, lu_k_medium_get(LU_CTX, m).eta);
+}
 
 /* sigma_t-weighted optical depth of every medium over (t0, t1] of the
  * texel's light ray, each clipped to its box and boundary span (exact per
@@ -135,7 +148,7 @@ LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview 
         k_out = lu_max(k_out, b);
         /* Fresnel counts where the boundary is crossed, even if the box clips
          * the density span shorter. */
-        fresnel_total *= lu_k_afm_lspan(LU_CTX, texel, m, 2) * lu_k_afm_lspan(LU_CTX, texel, m, 3);
+        fresnel_total *= lu_k_afm_crossing(LU_CTX, texel, m, 2) * lu_k_afm_crossing(LU_CTX, texel, m, 3);
     }
     if (!(k_out > k_in)) {
         /* The ray misses every medium: transmittance 1 at every depth. */
@@ -157,8 +170,8 @@ LU_FN void lu_k_afm_build_texel(LU_CTX_PARAM, lu_k_afm_params P, lu_k_lightview 
         for (int m = 0; m < nm; m++) {
             float lo = lu_k_afm_lspan(LU_CTX, texel, m, 0), hi = lu_k_afm_lspan(LU_CTX, texel, m, 1);
             if (!(hi > lo)) continue;
-            if (t > lo) fres *= lu_k_afm_lspan(LU_CTX, texel, m, 2);
-            if (t > hi) fres *= lu_k_afm_lspan(LU_CTX, texel, m, 3);
+            if (t > lo) fres *= lu_k_afm_crossing(LU_CTX, texel, m, 2);
+            if (t > hi) fres *= lu_k_afm_crossing(LU_CTX, texel, m, 3);
         }
         tau = lu_v3_add(tau, lu_k_afm_tau(LU_CTX, texel, ray, t_prev, t));
         t_prev = t;

@@ -195,6 +195,7 @@ lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_frame *f, lu_k_c
     lu_parallel_for(c->height, 4, vis_rows, &j, NULL);
     mr->vis_valid = true;
     mr->vis_nl = nl;
+    mr->vis_version++;
     for (int l = 0; l < nl; l++)
         if ((lights >> (l < 63 ? l : 63)) & 1u) lu_frame_rebuilt(f, "media_rays.surface_vis");
     return LU_OK;

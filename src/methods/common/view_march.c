@@ -39,6 +39,8 @@ void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, con
     f->shadow = mr->shadow;
     f->surface_vis = mr->surface_vis;
     f->maps_version = mr->maps_version;
+    f->hits_version = mr->hits_version;
+    f->vis_version = mr->vis_version;
     f->max_steps = steps;
 }
 

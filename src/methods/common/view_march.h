@@ -34,6 +34,8 @@ typedef struct lu_view_march_frame {
     const float *surface_vis;        /* width*height*light_count: exact opaque visibility of each light
                                       * at each camera hit (lu_media_rays_surface_vis) */
     unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
+    unsigned hits_version;           /* ... hits and spans (lu_media_rays.hits_version) */
+    unsigned vis_version;            /* ... surface_vis (lu_media_rays.vis_version) */
     int max_steps;                   /* most march steps any camera ray takes (media diagonal / step) */
 } lu_view_march_frame;
 

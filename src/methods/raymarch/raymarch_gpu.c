@@ -14,8 +14,7 @@ struct lu_raymarch_gpu {
     lu_gpu_program *prog;
     lu_gpu_scene *scene;
     lu_gpu_buffer *buf[B_COUNT];
-    unsigned uploaded_version;      /* maps_version of the shadow maps on the GPU */
-    bool uploaded;
+    lu_gpu_upload up[B_COUNT];      /* what each slot holds (versions of the CPU products) */
 };
 
 lu_result lu_raymarch_gpu_create(const lu_scene *scene, lu_raymarch_gpu **out, lu_error *err) {
@@ -47,26 +46,36 @@ static lu_result put(lu_raymarch_gpu *g, int i, const void *data, size_t bytes, 
     return lu_gpu_buffer_put(g->ctx, &g->buf[i], data, bytes, LU_SCENE_BINDING_FREE + i, err);
 }
 
+/* put, skipped when slot i holds this version of its CPU product. */
+static lu_result put_kept(lu_raymarch_gpu *g, int i, const void *data, size_t bytes, unsigned version, lu_error *err) {
+    return lu_gpu_buffer_put_versioned(g->ctx, &g->buf[i], &g->up[i], data, bytes, version, LU_SCENE_BINDING_FREE + i,
+                                       err);
+}
+
 lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, const lu_view_march_frame *f, lu_image *out,
                                  lu_error *err) {
     size_t pixels = (size_t)f->width * f->height;
     size_t texels = (size_t)f->map_res * f->map_res;
     lu_result r = lu_gpu_scene_update(g->scene, scene, err);
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
-    if (r == LU_OK) r = put(g, B_HITS, f->hits, pixels * 16 * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_SPANS, f->spans, pixels * (size_t)f->medium_count * 2 * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_VIEWS, f->views, (size_t)f->view_count * LU_RM_VIEW_FLOATS * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_TABLE, f->view_table, (size_t)f->light_count * 2 * sizeof(int), err);
-    /* Shadow maps only change with the lights: skip the upload when the CPU kept them. */
-    if (r == LU_OK) {
-        bool same = g->uploaded && g->uploaded_version == f->maps_version;
-        r = put(g, B_SHADOW, same ? NULL : f->shadow, (size_t)f->view_count * texels * sizeof(float), err);
-        g->uploaded = r == LU_OK;
-        g->uploaded_version = f->maps_version;
-    }
+    /* Each CPU input crosses the bus only in the frame its product was
+     * rebuilt (media_ray.h: camera rays, shadow views and maps, surface
+     * visibility). */
+    if (r == LU_OK) r = put_kept(g, B_HITS, f->hits, pixels * 16 * sizeof(float), f->hits_version, err);
+    if (r == LU_OK)
+        r = put_kept(g, B_SPANS, f->spans, pixels * (size_t)f->medium_count * 2 * sizeof(float), f->hits_version, err);
+    if (r == LU_OK)
+        r = put_kept(g, B_VIEWS, f->views, (size_t)f->view_count * LU_RM_VIEW_FLOATS * sizeof(float), f->maps_version,
+                     err);
+    if (r == LU_OK)
+        r = put_kept(g, B_TABLE, f->view_table, (size_t)f->light_count * 2 * sizeof(int), f->maps_version, err);
+    if (r == LU_OK)
+        r = put_kept(g, B_SHADOW, f->shadow, (size_t)f->view_count * texels * sizeof(float), f->maps_version, err);
     if (r == LU_OK) r = put(g, B_OUT, NULL, pixels * 3 * sizeof(float), err);
     if (r == LU_OK) r = put(g, B_STATE, NULL, pixels * 8 * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_SURFVIS, f->surface_vis, pixels * (size_t)f->light_count * sizeof(float), err);
+    if (r == LU_OK)
+        r = put_kept(g, B_SURFVIS, f->surface_vis, pixels * (size_t)f->light_count * sizeof(float), f->vis_version,
+                     err);
     if (r != LU_OK) return r;
     lu_gpu_uniform_int(g->prog, "u_map_res", f->map_res);
     lu_gpu_uniform_float(g->prog, "u_step", f->step);
