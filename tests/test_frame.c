@@ -28,9 +28,10 @@ static float blob(void *ctx, int x, int y, int z, float v) {
     return v + 0.5f * expf(-(dx * dx + dy * dy + dz * dz) / 8.0f);
 }
 
-enum { S_FIRST, S_STILL, S_CAMERA, S_LIGHT0, S_LIGHT1, S_DENSITY, S_COEFS, S_CAMERA_LIGHT, S_COUNT };
-static const char *const k_step_names[S_COUNT] = {"first", "still", "camera", "light 0", "light 1",
-                                                   "density edit", "coefficients", "camera + light 0"};
+enum { S_FIRST, S_STILL, S_CAMERA, S_LIGHT0, S_LIGHT1, S_DENSITY, S_COEFS, S_CAMERA_LIGHT, S_OBJECT, S_AFTER, S_COUNT };
+static const char *const k_step_names[S_COUNT] = {"first", "still", "camera", "light 0", "light 1", "density edit",
+                                                   "coefficients", "camera + light 0", "object moved",
+                                                   "camera after the move"};
 
 /* Applies step s; returns the lu_change bits it made and sets *lights to the
  * scene lights it changed (bit per light). */
@@ -74,6 +75,26 @@ static unsigned apply_step(lu_scene *sc, int s, uint64_t *lights) {
         if (sc->medium_count == 0) return 0;
         sc->media[0].sigma_s = lu_v3_scale(sc->media[0].sigma_s, 1.05f);
         return LU_CHANGE_MEDIA;
+    case S_OBJECT:
+        /* Objects are baked to world space: a moved object is a new mesh. */
+        for (int o = 0; o < sc->object_count; o++) {
+            lu_mesh *m = &sc->objects[o].mesh, n;
+            if (sc->objects[o].material.type != LU_MATERIAL_DIFFUSE) continue;
+            CHECK_OK(lu_mesh_alloc(&n, m->vertex_count, m->triangle_count, &err), &err);
+            for (uint32_t v = 0; v < m->vertex_count; v++) {
+                n.positions[v] = lu_v3_add(m->positions[v], lu_v3(0.02f, 0.0f, 0.01f));
+                n.normals[v] = m->normals[v];
+            }
+            memcpy(n.indices, m->indices, (size_t)m->triangle_count * 3 * sizeof *m->indices);
+            lu_mesh_destroy(m);
+            *m = n;
+            *lights = ~0ull;
+            return LU_CHANGE_GEOMETRY;
+        }
+        return 0;
+    case S_AFTER:
+        sc->camera.position = rotate_about_y(sc->camera.position, sc->camera.look_at, -4.0f);
+        return LU_CHANGE_CAMERA;
     }
     return 0;
 }
@@ -156,6 +177,7 @@ static void run_sequence(const char *scene_file, const char *method, lu_backend 
     uint64_t before[PRODUCTS] = {0};
     bool uses[PRODUCTS] = {false};
     int identical = 0;
+    uint64_t prepares_before = 0;
     for (int s = 0; s < S_COUNT; s++) {
         uint64_t lights;
         unsigned changes = apply_step(&sc, s, &lights);
@@ -179,6 +201,13 @@ static void run_sequence(const char *scene_file, const char *method, lu_backend 
                       (unsigned long long)(now - before[i]), (unsigned long long)want);
             before[i] = now;
         }
+        /* New geometry makes the renderer prepare again (method.c). */
+        uint64_t prepares = lu_renderer_rebuilds(r, "renderer.prepare");
+        uint64_t want_prepares = s != S_FIRST && (changes & LU_CHANGE_GEOMETRY) ? 1u : 0u;
+        CHECK_MSG(prepares - prepares_before == want_prepares, "%s %s on %s, step \"%s\": prepared %llu times, expected %llu",
+                  method, lu_backend_name(backend), scene_file, k_step_names[s],
+                  (unsigned long long)(prepares - prepares_before), (unsigned long long)want_prepares);
+        prepares_before = prepares;
         lu_renderer_destroy(f);
         lu_image_destroy(&kept);
         lu_image_destroy(&fresh);

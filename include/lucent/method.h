@@ -126,6 +126,7 @@ typedef struct lu_renderer {
     double last_render_ms;   /* wall time of the latest render */
     lu_progressive progressive;  /* see lu_renderer_set_progressive */
     struct lu_frame_stage *stage;   /* what the previous frame rendered (internal) */
+    int frames;                     /* frames rendered since create or the last failed frame */
 } lu_renderer;
 
 lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu_kvlist *settings,

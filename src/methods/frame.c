@@ -88,8 +88,14 @@ void lu_frame_stage_begin(lu_frame_stage *s, const lu_scene *scene, lu_frame *f)
     if (scene->light_count != s->light_count) {
         lights = ~0ull;
     } else {
-        for (int l = 0; l < scene->light_count; l++)
-            if (!same_light(&scene->lights[l], &s->lights[l])) lights |= 1ull << (l < 63 ? l : 63);
+        for (int l = 0; l < scene->light_count; l++) {
+            if (same_light(&scene->lights[l], &s->lights[l])) continue;
+            lights |= 1ull << (l < 63 ? l : 63);
+            /* A light turning into or out of an environment light shifts the
+             * kernel index of every light after it (lu_frame_kernel_lights_changed). */
+            if ((scene->lights[l].type == LU_LIGHT_ENVIRONMENT) != (s->lights[l].type == LU_LIGHT_ENVIRONMENT))
+                lights = ~0ull;
+        }
     }
     if (s->forced & LU_CHANGE_LIGHTS) lights = ~0ull;
     if (lights) c |= LU_CHANGE_LIGHTS;

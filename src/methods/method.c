@@ -190,6 +190,9 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
         r = m->prepare(scene, rd->params, backend, &rd->state, err);
         rd->prepare_ms = 1e3 * (lu_time_seconds() - t0);
     }
+    /* The scene prepare saw: a first frame with other geometry prepares again. */
+    if (r == LU_OK) r = lu_frame_stage_end(rd->stage, scene, true, err);
+    if (r != LU_OK && rd->state) m->destroy(rd->state);
     if (r != LU_OK) {
         lu_frame_stage_destroy(rd->stage);
         free(rd);
@@ -211,10 +214,32 @@ lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *ou
     double t0 = lu_time_seconds();
     lu_frame frame;
     lu_frame_stage_begin(r->stage, scene, &frame);
+    if ((frame.changed & LU_CHANGE_GEOMETRY) || !r->state) {
+        /* Objects are baked to world space and the methods' accelerations,
+         * profiles and boundary tables are built at prepare: new geometry is
+         * a new scene for them, so prepare again. */
+        r->method->destroy(r->state);
+        r->state = NULL;
+        double t1 = lu_time_seconds();
+        lu_result e = r->method->prepare(scene, r->params, r->backend, &r->state, err);
+        r->prepare_ms = 1e3 * (lu_time_seconds() - t1);
+        if (e != LU_OK) {
+            r->state = NULL;
+            r->frames = 0;
+            return e;
+        }
+        lu_frame_rebuilt(&frame, "renderer.prepare");
+        r->frames = 0;
+    }
+    if (r->frames == 0) {   /* nothing has been rendered from this state yet */
+        frame.changed = LU_CHANGE_ALL;
+        frame.lights_changed = ~0ull;
+    }
     lu_result e = r->progressive.fn && r->method->render_progressive
                       ? r->method->render_progressive(r->state, &frame, out, &r->progressive, err)
                       : r->method->render(r->state, &frame, out, err);
     lu_result s = lu_frame_stage_end(r->stage, scene, e == LU_OK, err);
+    r->frames = e == LU_OK ? r->frames + 1 : 0;
     r->last_render_ms = 1e3 * (lu_time_seconds() - t0);
     return e != LU_OK ? e : s;
 }
