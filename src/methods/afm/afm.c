@@ -476,12 +476,19 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     return LU_OK;
 }
 
+/* Delalandre et al.'s set-up (Fig. 1: 1280x720 on a GTX 280). */
+static const lu_preset k_presets[] = {
+    {"paper", "map_res=1024 coefs=16 steps=500", "the seed paper's settings: a 1024^2 map, 16 coefficients, 500 steps"},
+};
+
 const lu_method lu_method_afm = {
     .name = "afm",
     .summary = "attenuation function maps: DCT-compressed light transmittance per light texel, fixed-step view march (CPU and GPU, one kernel)",
     .backends = LU_BACKEND_CPU | LU_BACKEND_GPU,
     .params = k_params,
     .param_count = P_COUNT,
+    .presets = k_presets,
+    .preset_count = 1,
     .prepare = afm_prepare,
     .render = afm_render,
     .destroy = afm_destroy,
