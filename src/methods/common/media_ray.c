@@ -194,6 +194,7 @@ lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_frame *f, lu_k_c
     vis_job j = {mr, scene, cam, kl, nl, eps, lights};
     lu_parallel_for(c->height, 4, vis_rows, &j, NULL);
     mr->vis_valid = true;
+    mr->vis_version++;
     mr->vis_nl = nl;
     for (int l = 0; l < nl; l++)
         if ((lights >> (l < 63 ? l : 63)) & 1u) lu_frame_rebuilt(f, "media_rays.surface_vis");

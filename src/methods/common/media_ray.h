@@ -46,6 +46,7 @@ typedef struct lu_media_rays {
     size_t surface_vis_cap;
     int vis_nl;
     bool vis_valid;
+    unsigned vis_version;        /* changes whenever any light's column is rebuilt */
     /* light views and shadow maps: lights, geometry */
     int shadow_res;
     lu_k_lightview *views;

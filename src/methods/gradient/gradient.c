@@ -135,6 +135,8 @@ typedef struct gr_state {
     int nm;
     lu_grid *dens;             /* per medium: reconstructed density (data NULL for constant media) */
     lu_gauss_fit *fits;        /* per medium */
+    bool fit_valid;            /* fits and dens match the scene's media ("gradient.fit") */
+    bool light_valid;          /* samples, cell lists and radiance grid ("gradient.samples", "gradient.radiance_grid") */
     lu_k_medium *km;
     lu_k_light *kl;
     int nl;
@@ -168,7 +170,8 @@ static void gr_destroy(void *state) {
     if (!st) return;
     lu_gradient_gpu_destroy(st->gpu);
     lu_media_rays_free(&st->mr);
-    for (int m = 0; m < st->nm; m++) {
+    /* pervoxel's dens are views of the scene's grids */
+    for (int m = 0; m < st->nm && st->mode != LU_K_GR_PERVOXEL; m++) {
         if (st->dens) lu_grid_destroy(&st->dens[m]);
         if (st->fits) lu_gauss_fit_free(&st->fits[m]);
     }
@@ -224,10 +227,24 @@ static lu_result gr_prepare_mode(const lu_scene *scene, const double *params, in
     st->fits = calloc(nm, sizeof *st->fits);
     st->km = calloc(nm, sizeof *st->km);
     if ((!st->dens || !st->fits || !st->km) && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", who);
+    if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_gradient_gpu_create(scene, &st->gpu, err);
+    if (r != LU_OK) {
+        gr_destroy(st);
+        return r;
+    }
+    *out = st;
+    return LU_OK;
+}
+
+/* ---- the density the CPU traces ---- */
+
+/* Finest density voxel and largest grid dimension: the scales of delta1,
+ * the radiance grid and the splitting levels. */
+static void density_scales(gr_state *st, const lu_scene *scene) {
     st->box = lu_scene_media_bounds(scene);
     st->density_voxel = 0.0f;
-    double worst_fit = 0.0;
-    for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
+    st->density_res = 0;
+    for (int m = 0; m < scene->medium_count; m++) {
         const lu_medium *med = &scene->media[m];
         if (med->kind != LU_DENSITY_GRID) continue;
         float vs = index_scale(&med->index_to_world);
@@ -235,15 +252,33 @@ static lu_result gr_prepare_mode(const lu_scene *scene, const double *params, in
         int dm = med->grid.nx > med->grid.ny ? med->grid.nx : med->grid.ny;
         if (med->grid.nz > dm) dm = med->grid.nz;
         if (dm > st->density_res) st->density_res = dm;
-        /* pervoxel traces the scene's grid; the sample methods the Gaussian representation. */
-        if (mode == LU_K_GR_PERVOXEL) {
-            r = lu_grid_alloc(&st->dens[m], med->grid.nx, med->grid.ny, med->grid.nz, err);
-            if (r == LU_OK) {
-                memcpy(st->dens[m].data, med->grid.data, (size_t)med->grid.nx * med->grid.ny * med->grid.nz * 4);
-                st->dens[m].index_to_world = med->grid.index_to_world;
-            }
-            continue;
-        }
+    }
+    if (st->density_res == 0) st->density_res = 64;
+    if (st->density_voxel == 0.0f && lu_aabb_valid(st->box))
+        st->density_voxel = lu_v3_maxc(lu_v3_sub(st->box.hi, st->box.lo)) / 64.0f;
+}
+
+/* pervoxel traces the scene's grids as they are; the sample methods the
+ * Gaussian representation (product "gradient.fit": the density's values and
+ * geometry), which also places their initial samples. */
+static lu_result update_density(gr_state *st, const lu_frame *frame, lu_error *err) {
+    const lu_scene *scene = frame->scene;
+    if (st->mode == LU_K_GR_PERVOXEL) {
+        for (int m = 0; m < st->nm; m++)
+            st->dens[m] = scene->media[m].kind == LU_DENSITY_GRID ? scene->media[m].grid : (lu_grid){0};
+        return LU_OK;
+    }
+    if (!lu_frame_stale(frame, st->fit_valid, LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY)) return LU_OK;
+    st->fit_valid = false;
+    st->stats.gaussians = 0;
+    st->stats.fit_ms = st->stats.reconstruct_ms = 0.0;
+    double worst_fit = 0.0;
+    lu_result r = LU_OK;
+    for (int m = 0; m < st->nm && r == LU_OK; m++) {
+        lu_grid_destroy(&st->dens[m]);
+        lu_gauss_fit_free(&st->fits[m]);
+        const lu_medium *med = &scene->media[m];
+        if (med->kind != LU_DENSITY_GRID) continue;
         r = lu_gauss_fit_grid(&med->grid, (int)st->p[P_GAUSSIANS], (float)st->p[P_MAX_RADIUS], &st->fits[m], err);
         if (r != LU_OK) break;
         st->stats.gaussians += st->fits[m].count;
@@ -254,15 +289,9 @@ static lu_result gr_prepare_mode(const lu_scene *scene, const double *params, in
         st->stats.reconstruct_ms += 1e3 * (lu_time_seconds() - t0);
     }
     st->stats.fit_rel_l2 = worst_fit;
-    if (st->density_res == 0) st->density_res = 64;
-    if (st->density_voxel == 0.0f && lu_aabb_valid(st->box))
-        st->density_voxel = lu_v3_maxc(lu_v3_sub(st->box.hi, st->box.lo)) / 64.0f;
-    if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_gradient_gpu_create(scene, &st->gpu, err);
-    if (r != LU_OK) {
-        gr_destroy(st);
-        return r;
-    }
-    *out = st;
+    if (r != LU_OK) return r;
+    st->fit_valid = true;
+    lu_frame_rebuilt(frame, "gradient.fit");
     return LU_OK;
 }
 
@@ -597,6 +626,58 @@ static double uncovered_fraction(gr_state *st) {
     return dense ? (double)bare / (double)dense : 0.0;
 }
 
+/* Samples: roots, then splitting levels, the final set and its cell lists. */
+static lu_result build_samples(gr_state *st, const lu_scene *scene, int levels, lu_error *err) {
+    st->n = 0;
+    lu_result r = root_samples(st, scene, err);
+    if (r != LU_OK) return r;
+    int roots = st->n;
+    st->stats.root_samples = roots;
+    int first = 0, count = roots;
+    double threshold = 0.0;
+    for (int level = 0; level <= levels; level++) {
+        bool more = level < levels;
+        r = eval_samples(st, scene, first, count, more ? 1 : 0, err);
+        if (r != LU_OK) return r;
+        st->stats.level_samples[level] = count;
+        if (!more) break;
+        if (level == 0) threshold = st->p[P_EPSILON] * error_unit(st, roots);
+        bool added;
+        r = split_level(st, level, first, count, threshold, &added, err);
+        if (r != LU_OK) return r;
+        if (!added) break;
+        first += count;
+        count = st->n - first;
+    }
+    /* The final set: every sample not split, over all levels. */
+    free(st->final);
+    st->final = malloc((st->n ? (size_t)st->n : 1u) * LU_K_GR_SAMPLE_FLOATS * sizeof(float));
+    if (!st->final) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", st->who);
+    st->nfinal = 0;
+    for (int j = 0; j < st->n; j++)
+        if (st->active[j])
+            memcpy(st->final + (size_t)st->nfinal++ * LU_K_GR_SAMPLE_FLOATS, st->smp + (size_t)j * LU_K_GR_SAMPLE_FLOATS,
+                   LU_K_GR_SAMPLE_FLOATS * sizeof(float));
+    st->stats.samples = st->nfinal;
+    return build_cells(st, err);
+}
+
+/* pervoxel has no samples: empty cell lists. */
+static lu_result empty_cells(gr_state *st, lu_error *err) {
+    const lu_k_gr_params *G = &st->kctx.G;
+    st->nfinal = 0;
+    size_t nc = (size_t)G->cx * G->cy * G->cz + 1;
+    if (nc > st->cells_cap) {
+        free(st->cell_begin);
+        st->cell_begin = calloc(nc, sizeof(int));
+        st->cells_cap = st->cell_begin ? nc : 0;
+        if (!st->cell_begin) return lu_fail(err, LU_ERR_NOMEM, "pervoxel: out of memory");
+    } else {
+        memset(st->cell_begin, 0, nc * sizeof(int));
+    }
+    return LU_OK;
+}
+
 static lu_result gr_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
     const lu_scene *scene = frame->scene;
     gr_state *st = state;
@@ -615,16 +696,11 @@ static lu_result gr_render(void *state, const lu_frame *frame, lu_image *out, lu
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, st->nl, err);
     if (r == LU_OK) r = lu_media_rays_boundary_maps(&st->mr, frame, kl, st->nl, err);
     if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, st->nl, st->eps, err);
+    if (r == LU_OK) r = update_density(st, frame, err);
     if (r != LU_OK) return r;
-    lu_gradient_stats keep = st->stats;
-    memset(&st->stats, 0, sizeof st->stats);
-    st->stats.gaussians = keep.gaussians;
-    st->stats.fit_rel_l2 = keep.fit_rel_l2;
-    st->stats.fit_ms = keep.fit_ms;
-    st->stats.reconstruct_ms = keep.reconstruct_ms;
+    density_scales(st, scene);
 
     /* Radiance grid over the media box: cubic voxels, `grid` along the longest side. */
-    st->box = lu_scene_media_bounds(scene);
     lu_vec3 ext = lu_v3_sub(st->box.hi, st->box.lo);
     float emax = fmaxf(lu_v3_maxc(ext), 1e-6f);
     int res = (int)st->p[P_GRID] > 0 ? (int)st->p[P_GRID] : st->density_res;
@@ -680,58 +756,30 @@ static lu_result gr_render(void *state, const lu_frame *frame, lu_image *out, lu
     f->mr = &st->mr;
     f->surf = st->surf;
 
-    /* Samples: roots, then splitting levels (gradient only). */
+    /* Splitting levels (the finest grid stays at half the density resolution or coarser). */
+    int levels = st->mode != LU_K_GR_PERVOXEL ? (int)st->p[P_LEVELS] : 0;
+    while (levels > 0 && (16 << (levels - 1)) > (st->density_res + 1) / 2) levels--;
+    /* The light-side products, samples and radiance grid, read the lights,
+     * the media and their geometry; the camera too where the source radiance
+     * depends on the view direction (an anisotropic phase, Eq. 1) or the
+     * splitting weighs each sample's error by its transmittance to the camera
+     * (Eq. 5). */
+    bool view = G.g != 0.0f || levels > 0;
+    unsigned deps = LU_CHANGE_LIGHTS | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY | (view ? LU_CHANGE_CAMERA : 0u);
+    bool rebuild = lu_frame_stale(frame, st->light_valid, deps);
     double t0 = lu_time_seconds();
-    st->n = 0;
-    if (st->mode != LU_K_GR_PERVOXEL) {
-        r = root_samples(st, scene, err);
+    st->stats.ms_samples = st->stats.ms_field = 0.0;
+    if (rebuild) {
+        st->light_valid = false;
+        memset(st->stats.level_samples, 0, sizeof st->stats.level_samples);
+        memset(st->stats.split, 0, sizeof st->stats.split);
+        st->stats.root_samples = st->stats.fill_samples = st->stats.samples = 0;
+        st->stats.cell_items = 0;
+        r = st->mode != LU_K_GR_PERVOXEL ? build_samples(st, scene, levels, err) : empty_cells(st, err);
         if (r != LU_OK) return r;
-        int roots = st->n;
-        st->stats.root_samples = roots;
-        int levels = st->mode == LU_K_GR_GRADIENT || st->mode == LU_K_GR_RBF ? (int)st->p[P_LEVELS] : 0;
-        /* The finest grid stays at half the density resolution or coarser. */
-        while (levels > 0 && (16 << (levels - 1)) > (st->density_res + 1) / 2) levels--;
-        int first = 0, count = roots;
-        double threshold = 0.0;
-        for (int level = 0; level <= levels; level++) {
-            bool more = level < levels;
-            r = eval_samples(st, scene, first, count, more ? 1 : 0, err);
-            if (r != LU_OK) return r;
-            st->stats.level_samples[level] = count;
-            if (!more) break;
-            if (level == 0) threshold = st->p[P_EPSILON] * error_unit(st, roots);
-            bool added;
-            r = split_level(st, level, first, count, threshold, &added, err);
-            if (r != LU_OK) return r;
-            if (!added) break;
-            first += count;
-            count = st->n - first;
-        }
-        /* The final set: every sample not split, over all levels. */
-        free(st->final);
-        st->final = malloc((st->n ? (size_t)st->n : 1u) * LU_K_GR_SAMPLE_FLOATS * sizeof(float));
-        if (!st->final) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", st->who);
-        st->nfinal = 0;
-        for (int j = 0; j < st->n; j++)
-            if (st->active[j])
-                memcpy(st->final + (size_t)st->nfinal++ * LU_K_GR_SAMPLE_FLOATS,
-                       st->smp + (size_t)j * LU_K_GR_SAMPLE_FLOATS, LU_K_GR_SAMPLE_FLOATS * sizeof(float));
-        st->stats.samples = st->nfinal;
-        r = build_cells(st, err);
-        if (r != LU_OK) return r;
-    } else {
-        st->nfinal = 0;
-        size_t nc = (size_t)G.cx * G.cy * G.cz + 1;
-        if (nc > st->cells_cap) {
-            free(st->cell_begin);
-            st->cell_begin = calloc(nc, sizeof(int));
-            st->cells_cap = st->cell_begin ? nc : 0;
-            if (!st->cell_begin) return lu_fail(err, LU_ERR_NOMEM, "pervoxel: out of memory");
-        } else {
-            memset(st->cell_begin, 0, nc * sizeof(int));
-        }
+        st->stats.ms_samples = 1e3 * (lu_time_seconds() - t0);
+        if (st->mode != LU_K_GR_PERVOXEL) lu_frame_rebuilt(frame, "gradient.samples");
     }
-    st->stats.ms_samples = 1e3 * (lu_time_seconds() - t0);
     f->samples = st->final;
     f->sample_count = st->nfinal;
     f->cell_begin = st->cell_begin;
@@ -750,17 +798,22 @@ static lu_result gr_render(void *state, const lu_frame *frame, lu_image *out, lu
     st->kctx.cell_items = st->cell_items;
     st->kctx.samples = st->final;
     if (st->backend == LU_BACKEND_GPU) {
-        r = lu_gradient_gpu_render(st->gpu, scene, f, out, &st->stats.ms_field, &st->stats.ms_march, err);
+        r = lu_gradient_gpu_render(st->gpu, scene, f, rebuild, out, &st->stats.ms_field, &st->stats.ms_march, err);
     } else {
         t0 = lu_time_seconds();
-        lu_parallel_for((int64_t)nv, 256, field_range, st, NULL);
+        if (rebuild) lu_parallel_for((int64_t)nv, 256, field_range, st, NULL);
         double t1 = lu_time_seconds();
         st->stats.ms_field = 1e3 * (t1 - t0);
         lu_parallel_for(c->height, 1, march_rows, st, NULL);
         st->stats.ms_march = 1e3 * (lu_time_seconds() - t1);
         if (getenv("LUCENT_GRADIENT_STATS")) st->stats.uncovered = uncovered_fraction(st);
     }
-    if (r == LU_OK && getenv("LUCENT_GRADIENT_STATS"))
+    if (r != LU_OK) return r;
+    if (rebuild) {
+        st->light_valid = true;
+        lu_frame_rebuilt(frame, "gradient.radiance_grid");
+    }
+    if (getenv("LUCENT_GRADIENT_STATS"))
         fprintf(stderr,
                 "%s: gaussians %d (fit rel-L2 %.4f, %.1f ms), roots %d (fill %d), final samples %d, levels %d/%d/%d/%d, "
                 "split %d/%d/%d, grid %dx%dx%d, cell items %lld, uncovered %.4f, ms samples %.2f field %.2f march "
@@ -771,7 +824,7 @@ static lu_result gr_render(void *state, const lu_frame *frame, lu_image *out, lu
                 st->stats.level_samples[3], st->stats.split[0], st->stats.split[1], st->stats.split[2], G.nx, G.ny,
                 G.nz, st->stats.cell_items, st->stats.uncovered, st->stats.ms_samples, st->stats.ms_field,
                 st->stats.ms_march);
-    return r;
+    return LU_OK;
 }
 
 static lu_result gradient_prepare(const lu_scene *s, const double *p, lu_backend b, void **out, lu_error *err) {

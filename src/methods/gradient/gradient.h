@@ -52,10 +52,11 @@ lu_result lu_gradient_gpu_create(const lu_scene *scene, lu_gradient_gpu **out, l
  * as pairs. */
 lu_result lu_gradient_gpu_eval(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, int first,
                                int count, int want_error, const float *tau_in, float *err_tau, lu_error *err);
-/* Builds the radiance grid (interpolation or per-voxel tracing) and marches
- * the camera rays into out. */
-lu_result lu_gradient_gpu_render(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, lu_image *out,
-                                 double *ms_field, double *ms_march, lu_error *err);
+/* Builds the radiance grid (interpolation or per-voxel tracing) when
+ * rebuild is set, else keeps the one built last, and marches the camera rays
+ * into out. */
+lu_result lu_gradient_gpu_render(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, bool rebuild,
+                                 lu_image *out, double *ms_field, double *ms_march, lu_error *err);
 void lu_gradient_gpu_destroy(lu_gradient_gpu *g);
 
 #endif
