@@ -85,8 +85,11 @@ typedef struct product {
     bool per_light;     /* also rebuilt, once per kernel light, when that light alone changed */
 } product;
 
-/* In deps: the camera, where the method's light-side work reads it (view_dependent). */
-#define CAMERA_IF_VIEW (1u << 16)
+/* In deps: the camera, where the phase is anisotropic (the source radiance is
+ * scattered towards the camera), or where the method's light-side work reads
+ * it in any way (view_dependent). */
+#define CAMERA_IF_ANISOTROPIC (1u << 16)
+#define CAMERA_IF_VIEW (1u << 17)
 
 static const product k_products[] = {
     {"media_rays.camera", LU_CHANGE_CAMERA | LU_CHANGE_GEOMETRY, false},
@@ -95,10 +98,11 @@ static const product k_products[] = {
     {"media_rays.surface_vis", LU_CHANGE_CAMERA | LU_CHANGE_GEOMETRY, true},
     /* the Gaussians fitted to the density and their reconstruction */
     {"gradient.fit", LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY, false},
-    /* source radiance at the samples (traced towards the lights through the
-     * media and the shadow maps), the splitting, and the radiance grid
-     * interpolated from them */
-    {"gradient.samples", LU_CHANGE_LIGHTS | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY | CAMERA_IF_VIEW, false},
+    /* source radiance at the samples, its gradient and shading error
+     * (traced towards the lights through the media and the shadow maps) */
+    {"gradient.samples", LU_CHANGE_LIGHTS | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY | CAMERA_IF_ANISOTROPIC, false},
+    /* the splitting, which weighs that error by the transmittance to the
+     * camera, and the radiance grid interpolated from the final samples */
     {"gradient.radiance_grid", LU_CHANGE_LIGHTS | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY | CAMERA_IF_VIEW, false},
 };
 
@@ -109,8 +113,9 @@ _Static_assert(sizeof k_products / sizeof k_products[0] <= 32, "run_sequence kee
  * unless the phase is isotropic, and gradient's dynamic sampling weighs each
  * sample's error by its transmittance to the camera (Ren et al. 2008, Eq. 5;
  * its splitting is on at these settings: 64^3 grids allow two levels). */
+static bool anisotropic(const lu_scene *sc) { return sc->medium_count > 0 && sc->media[0].phase_g != 0.0f; }
 static bool view_dependent(const char *method, const lu_scene *sc) {
-    return (sc->medium_count > 0 && sc->media[0].phase_g != 0.0f) || strcmp(method, "gradient") == 0;
+    return anisotropic(sc) || strcmp(method, "gradient") == 0;
 }
 
 static int kernel_lights(const lu_scene *sc) {
@@ -123,6 +128,7 @@ static uint64_t expected_rebuilds(const product *p, const char *method, unsigned
                                   const lu_scene *sc) {
     unsigned deps = p->deps & LU_CHANGE_ALL;
     if ((p->deps & CAMERA_IF_VIEW) && view_dependent(method, sc)) deps |= LU_CHANGE_CAMERA;
+    if ((p->deps & CAMERA_IF_ANISOTROPIC) && anisotropic(sc)) deps |= LU_CHANGE_CAMERA;
     if (p->per_light) {
         if (changes & deps) return (uint64_t)kernel_lights(sc);
         uint64_t n = 0;

@@ -39,6 +39,9 @@ void lu_gr_destroy(void *state) {
     free(st->tau);
     free(st->E);
     free(st->active);
+    free(st->Ev);
+    free(st->memo);
+    for (int L = 0; L < LU_GR_MEMO_LEVELS; L++) free(st->memo_map[L]);
     free(st->final);
     free(st->cell_begin);
     free(st->cell_items);
@@ -280,21 +283,26 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
      * depends on the view direction (an anisotropic phase, Eq. 1) or the
      * splitting weighs each sample's error by its transmittance to the camera
      * (Eq. 5). */
-    bool view = G.g != 0.0f || levels > 0;
-    unsigned deps = LU_CHANGE_LIGHTS | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY | (view ? LU_CHANGE_CAMERA : 0u);
-    bool rebuild = lu_frame_stale(frame, st->light_valid, deps);
+    unsigned light_side = LU_CHANGE_LIGHTS | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY;
+    bool rebuild = lu_frame_stale(frame, st->light_valid, light_side | (G.g != 0.0f || levels > 0 ? LU_CHANGE_CAMERA : 0u));
+    /* The sample evaluations (roots and split vertices) without tau_v read
+     * the camera only through the phase. */
+    bool keep = !lu_frame_stale(frame, st->evals_valid, light_side | (G.g != 0.0f ? LU_CHANGE_CAMERA : 0u));
     double t0 = lu_time_seconds();
     st->stats.ms_samples = st->stats.ms_field = 0.0;
+    st->stats.evaluated = 0;
     if (rebuild) {
         st->light_valid = false;
         memset(st->stats.level_samples, 0, sizeof st->stats.level_samples);
         memset(st->stats.split, 0, sizeof st->stats.split);
         st->stats.root_samples = st->stats.fill_samples = st->stats.samples = 0;
         st->stats.cell_items = 0;
-        r = st->mode != LU_K_GR_PERVOXEL ? lu_gr_build_samples(st, scene, levels, err) : lu_gr_empty_cells(st, err);
+        if (!keep) st->evals_valid = false;
+        r = st->mode != LU_K_GR_PERVOXEL ? lu_gr_build_samples(st, scene, levels, keep, err) : lu_gr_empty_cells(st, err);
         if (r != LU_OK) return r;
         st->stats.ms_samples = 1e3 * (lu_time_seconds() - t0);
-        if (st->mode != LU_K_GR_PERVOXEL) lu_frame_rebuilt(frame, "gradient.samples");
+        if (st->mode != LU_K_GR_PERVOXEL && !keep) lu_frame_rebuilt(frame, "gradient.samples");
+        st->evals_valid = true;
     }
     f->samples = st->final;
     f->sample_count = st->nfinal;
@@ -331,12 +339,12 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
     }
     if (getenv("LUCENT_GRADIENT_STATS"))
         fprintf(stderr,
-                "%s: gaussians %d (fit rel-L2 %.4f, %.1f ms), roots %d (fill %d), final samples %d, levels %d/%d/%d/%d, "
+                "%s: gaussians %d (fit rel-L2 %.4f, %.1f ms), roots %d (fill %d), evaluated %d, final samples %d, levels "
+                "%d/%d/%d/%d, "
                 "split %d/%d/%d, grid %dx%dx%d, cell items %lld, uncovered %.4f, ms samples %.2f field %.2f march "
                 "%.2f\n",
                 st->who, st->stats.gaussians, st->stats.fit_rel_l2, st->stats.fit_ms, st->stats.root_samples,
-                st->stats.fill_samples,
-                st->stats.samples, st->stats.level_samples[0], st->stats.level_samples[1], st->stats.level_samples[2],
+                st->stats.fill_samples, st->stats.evaluated, st->stats.samples, st->stats.level_samples[0], st->stats.level_samples[1], st->stats.level_samples[2],
                 st->stats.level_samples[3], st->stats.split[0], st->stats.split[1], st->stats.split[2], G.nx, G.ny,
                 G.nz, st->stats.cell_items, st->stats.uncovered, st->stats.ms_samples, st->stats.ms_field,
                 st->stats.ms_march);

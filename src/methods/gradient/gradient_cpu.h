@@ -77,6 +77,9 @@ enum {
     P_GAUSSIANS = P_PERVOXEL_COUNT, P_MAX_RADIUS, P_SEEDS, P_DELTA2, P_LEVELS, P_EPSILON, P_COUNT
 };
 
+/* Splitting levels whose vertices are kept (the `levels` parameter's maximum). */
+#define LU_GR_MEMO_LEVELS 3
+
 typedef struct lu_gr_state {
     int mode;                  /* LU_K_GR_* */
     lu_backend backend;
@@ -88,7 +91,8 @@ typedef struct lu_gr_state {
                                 * the scene's grids); data NULL for constant media */
     lu_gauss_fit *fits;        /* per medium */
     bool fit_valid;            /* fits and dens match the scene's media ("gradient.fit") */
-    bool light_valid;          /* samples, cell lists and radiance grid ("gradient.samples", "gradient.radiance_grid") */
+    bool evals_valid;          /* the kept sample evaluations ("gradient.samples") */
+    bool light_valid;          /* splitting, final set, cell lists, radiance grid ("gradient.radiance_grid") */
     lu_k_medium *km;
     lu_k_light *kl;
     int nl;
@@ -101,6 +105,17 @@ typedef struct lu_gr_state {
     float *tau, *E;
     unsigned char *active;
     int n, cap;
+    float *Ev;                 /* per sample: E_j without tau_v */
+    /* Evaluations kept while the lights, the media and their geometry stay
+     * (and the camera, where an anisotropic phase reads it): the roots,
+     * smp[0 .. nroots), and every split vertex evaluated so far (memo:
+     * records of LU_K_GR_SAMPLE_FLOATS + 1 floats, the last E_j without
+     * tau_v; memo_map[L]: level L's vertex -> record, -1 when not yet). */
+    int nroots, nfill;
+    int *memo_map[LU_GR_MEMO_LEVELS];
+    size_t memo_map_cap[LU_GR_MEMO_LEVELS];
+    float *memo;
+    int memo_n, memo_cap;
     float *final;              /* compacted final samples */
     int nfinal;
     int *cell_begin, *cell_items;
@@ -134,8 +149,9 @@ void lu_gr_destroy(void *state);
 
 /* Sampling and splitting (gradient_samples.c). Samples: the roots, then
  * `levels` splitting levels, the final set and its cell lists over
- * st->kctx.G; empty_cells: pervoxel's empty lists. */
-lu_result lu_gr_build_samples(lu_gr_state *st, const lu_scene *scene, int levels, lu_error *err);
+ * st->kctx.G; keep: the kept evaluations are valid (lu_gr_state);
+ * empty_cells: pervoxel's empty lists. */
+lu_result lu_gr_build_samples(lu_gr_state *st, const lu_scene *scene, int levels, bool keep, lu_error *err);
 lu_result lu_gr_empty_cells(lu_gr_state *st, lu_error *err);
 
 #endif

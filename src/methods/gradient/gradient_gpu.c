@@ -12,7 +12,7 @@
 
 /* Bindings above the scene: the media-ray inputs (as raymarch.comp), then this method's. */
 enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SAMPLES, B_CELLS, B_SURF, B_FIELD, B_PARAMS, B_ET, B_BMAP, B_COUNT };
-enum { PASS_EVAL = 0, PASS_FIELD = 1, PASS_MARCH = 2 };
+enum { PASS_EVAL = 0, PASS_FIELD = 1, PASS_MARCH = 2, PASS_TAU = 3 };
 
 struct lu_gradient_gpu {
     lu_gpu_context *ctx;
@@ -112,6 +112,24 @@ lu_result lu_gradient_gpu_eval(lu_gradient_gpu *g, const lu_scene *scene, const 
         r = lu_gpu_buffer_download(g->buf[B_SAMPLES], 0, f->samples + (size_t)first * LU_K_GR_SAMPLE_FLOATS,
                                    (size_t)count * rec, err);
     if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_ET], 0, err_tau, (size_t)count * 2 * sizeof(float), err);
+    return r;
+}
+
+lu_result lu_gradient_gpu_view_tau(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, int count,
+                                   float *tau, lu_error *err) {
+    if (count <= 0) return LU_OK;
+    lu_result r = bind_common(g, scene, f, err);
+    if (r == LU_OK) r = put(g, B_SAMPLES, f->samples, (size_t)count * LU_K_GR_SAMPLE_FLOATS * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_ET, NULL, (size_t)count * 2 * sizeof(float), err);
+    if (r != LU_OK) return r;
+    lu_gpu_uniform_int(g->prog, "u_pass", PASS_TAU);
+    lu_gpu_uniform_int(g->prog, "u_count", count);
+    r = lu_gpu_dispatch(g->prog, (unsigned)(count + 63) / 64, 1, 1, err);
+    float *et = r == LU_OK ? malloc((size_t)count * 2 * sizeof(float)) : NULL;
+    if (r == LU_OK && !et) r = lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory");
+    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_ET], 0, et, (size_t)count * 2 * sizeof(float), err);
+    for (int i = 0; r == LU_OK && i < count; i++) tau[i] = et[2 * i + 1];
+    free(et);
     return r;
 }
 

@@ -24,7 +24,9 @@ static lu_result grow(lu_gr_state *st, int need, lu_error *err) {
     if (e) st->E = e;
     unsigned char *a = realloc(st->active, (size_t)cap);
     if (a) st->active = a;
-    if (!s || !t || !e || !a) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for %d samples", need);
+    float *v = realloc(st->Ev, (size_t)cap * sizeof(float));
+    if (v) st->Ev = v;
+    if (!s || !t || !e || !a || !v) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for %d samples", need);
     st->cap = cap;
     return LU_OK;
 }
@@ -123,7 +125,8 @@ static lu_result root_samples(lu_gr_state *st, const lu_scene *scene, lu_error *
 
 typedef struct eval_job {
     lu_gr_state *st;
-    int first, want_error;
+    float *rec, *ev;
+    int want_error;
 } eval_job;
 
 static void eval_range(void *ctx, int64_t begin, int64_t end, int thread) {
@@ -131,39 +134,139 @@ static void eval_range(void *ctx, int64_t begin, int64_t end, int thread) {
     eval_job *job = ctx;
     lu_gr_state *st = job->st;
     for (int64_t i = begin; i < end; i++) {
-        int j = job->first + (int)i;
-        float *s = st->smp + (size_t)j * LU_K_GR_SAMPLE_FLOATS;
+        float *s = job->rec + (size_t)i * LU_K_GR_SAMPLE_FLOATS;
         lu_vec3 F, gx, gy, gz;
         float E, tau;
-        lu_k_gr_eval(&st->kctx, st->kctx.G, lu_v3(s[0], s[1], s[2]), s[3], st->tau[j], job->want_error, &F, &gx, &gy,
-                     &gz, &E, &tau);
+        lu_k_gr_eval(&st->kctx, st->kctx.G, lu_v3(s[0], s[1], s[2]), s[3], 1.0f, job->want_error, &F, &gx, &gy, &gz, &E,
+                     &tau);
         memcpy(s + 8, &F, 12);
         memcpy(s + 12, &gx, 12);
         memcpy(s + 16, &gy, 12);
         memcpy(s + 20, &gz, 12);
-        st->E[j] = E;
-        st->tau[j] = tau;
+        job->ev[i] = E;
     }
 }
 
-static lu_result eval_samples(lu_gr_state *st, const lu_scene *scene, int first, int count, int want_error, lu_error *err) {
+/* Evaluates count sample records in place (value, gradient) on the backend
+ * and writes their view-free error (E_j of Eq. 5 without tau_v) to ev. */
+static lu_result eval_records(lu_gr_state *st, const lu_scene *scene, float *rec, int count, int want_error, float *ev,
+                              lu_error *err) {
     if (count <= 0) return LU_OK;
+    st->stats.evaluated += count;
     if (st->backend == LU_BACKEND_GPU) {
-        st->frame.samples = st->smp;
-        st->frame.sample_count = st->n;
-        float *et = malloc((size_t)count * 2 * sizeof(float));
+        st->frame.samples = rec;
+        st->frame.sample_count = count;
+        float *et = malloc((size_t)count * 3 * sizeof(float));
         if (!et) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory");
-        lu_result r = lu_gradient_gpu_eval(st->gpu, scene, &st->frame, first, count, want_error, st->tau + first, et, err);
-        for (int i = 0; r == LU_OK && i < count; i++) {
-            st->E[first + i] = et[2 * i];
-            st->tau[first + i] = et[2 * i + 1];
-        }
+        float *ones = et + 2 * (size_t)count;
+        for (int i = 0; i < count; i++) ones[i] = 1.0f;
+        lu_result r = lu_gradient_gpu_eval(st->gpu, scene, &st->frame, 0, count, want_error, ones, et, err);
+        for (int i = 0; r == LU_OK && i < count; i++) ev[i] = et[2 * i];
         free(et);
         return r;
     }
-    eval_job job = {st, first, want_error};
+    eval_job job = {st, rec, ev, want_error};
     lu_parallel_for(count, 16, eval_range, &job, NULL);
     return LU_OK;
+}
+
+static void tau_range(void *ctx, int64_t begin, int64_t end, int thread) {
+    (void)thread;
+    lu_gr_state *st = ctx;
+    for (int64_t j = begin; j < end; j++) {
+        const float *s = st->smp + (size_t)j * LU_K_GR_SAMPLE_FLOATS;
+        st->tau[j] = lu_k_gr_view_tau(&st->kctx, st->kctx.G, lu_v3(s[0], s[1], s[2]));
+    }
+}
+
+/* tau_v of the roots smp[0 .. count): the camera-dependent part of E_j. */
+static lu_result view_tau(lu_gr_state *st, const lu_scene *scene, int count, lu_error *err) {
+    if (count <= 0) return LU_OK;
+    if (st->backend == LU_BACKEND_GPU) {
+        st->frame.samples = st->smp;
+        st->frame.sample_count = count;
+        return lu_gradient_gpu_view_tau(st->gpu, scene, &st->frame, count, st->tau, err);
+    }
+    lu_parallel_for(count, 16, tau_range, st, NULL);
+    return LU_OK;
+}
+
+/* ---- evaluations kept between frames ---- */
+
+/* Grid vertices of split level L: spacing and count per axis. */
+static float level_grid(const lu_gr_state *st, int level, int n[3]) {
+    lu_vec3 ext = lu_v3_sub(st->box.hi, st->box.lo);
+    float h = lu_v3_maxc(ext) / (float)(16 << level);
+    n[0] = (int)floorf(ext.x / h) + 1, n[1] = (int)floorf(ext.y / h) + 1, n[2] = (int)floorf(ext.z / h) + 1;
+    return h;
+}
+
+static lu_result memo_reset(lu_gr_state *st, int levels, lu_error *err) {
+    st->memo_n = 0;
+    for (int L = 0; L < LU_GR_MEMO_LEVELS; L++) {
+        size_t nv = 0;
+        if (L < levels) {
+            int n[3];
+            level_grid(st, L, n);
+            nv = (size_t)n[0] * n[1] * n[2];
+        }
+        if (nv > st->memo_map_cap[L]) {
+            free(st->memo_map[L]);
+            st->memo_map[L] = malloc(nv * sizeof(int));
+            st->memo_map_cap[L] = st->memo_map[L] ? nv : 0;
+            if (!st->memo_map[L]) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for kept samples");
+        }
+        for (size_t i = 0; i < nv; i++) st->memo_map[L][i] = -1;
+    }
+    return LU_OK;
+}
+
+#define MEMO_FLOATS (LU_K_GR_SAMPLE_FLOATS + 1) /* the record, then its view-free error */
+
+/* The children split_level added, smp[first .. n): copied from the kept
+ * evaluations where their vertex was evaluated before, evaluated (and kept)
+ * otherwise. An evaluation depends on the vertex alone, not on which parent
+ * split or on the camera, so a kept one equals a fresh one bit for bit. */
+static lu_result children(lu_gr_state *st, const lu_scene *scene, int level, int first, const int *vertex,
+                          int want_error, lu_error *err) {
+    int count = st->n - first, miss = 0;
+    int *map = st->memo_map[level];
+    float *rec = malloc(((size_t)count * (LU_K_GR_SAMPLE_FLOATS + 1) + 1) * sizeof(float));
+    int *which = malloc(((size_t)count + 1) * sizeof(int));
+    lu_result r = rec && which ? LU_OK : lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory splitting");
+    for (int c = 0; c < count && r == LU_OK; c++) {
+        int j = first + c, m = map[vertex[c]];
+        float *s = st->smp + (size_t)j * LU_K_GR_SAMPLE_FLOATS;
+        if (m >= 0) {
+            memcpy(s, st->memo + (size_t)m * MEMO_FLOATS, LU_K_GR_SAMPLE_FLOATS * sizeof(float));
+            st->Ev[j] = st->memo[(size_t)m * MEMO_FLOATS + LU_K_GR_SAMPLE_FLOATS];
+            continue;
+        }
+        memcpy(rec + (size_t)miss * LU_K_GR_SAMPLE_FLOATS, s, LU_K_GR_SAMPLE_FLOATS * sizeof(float));
+        which[miss++] = c;
+    }
+    float *ev = rec + (size_t)count * LU_K_GR_SAMPLE_FLOATS;
+    if (r == LU_OK) r = eval_records(st, scene, rec, miss, want_error, ev, err);
+    if (r == LU_OK && st->memo_n + miss > st->memo_cap) {
+        int cap = st->memo_cap ? st->memo_cap : 4096;
+        while (cap < st->memo_n + miss) cap *= 2;
+        float *p = realloc(st->memo, (size_t)cap * MEMO_FLOATS * sizeof(float));
+        if (p) st->memo = p, st->memo_cap = cap;
+        else r = lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for kept samples");
+    }
+    for (int k = 0; k < miss && r == LU_OK; k++) {
+        int j = first + which[k];
+        const float *src = rec + (size_t)k * LU_K_GR_SAMPLE_FLOATS;
+        memcpy(st->smp + (size_t)j * LU_K_GR_SAMPLE_FLOATS, src, LU_K_GR_SAMPLE_FLOATS * sizeof(float));
+        st->Ev[j] = ev[k];
+        float *m = st->memo + (size_t)st->memo_n * MEMO_FLOATS;
+        memcpy(m, src, LU_K_GR_SAMPLE_FLOATS * sizeof(float));
+        m[LU_K_GR_SAMPLE_FLOATS] = ev[k];
+        map[vertex[which[k]]] = st->memo_n++;
+    }
+    free(rec);
+    free(which);
+    return r;
 }
 
 /* Mean shading magnitude of the root samples, R^3 avg(F N) D tau: the unit
@@ -183,14 +286,15 @@ static double error_unit(lu_gr_state *st, int count) {
 
 /* Recursive splitting (Sec. 5): samples of the last level whose E_j exceeds
  * the threshold are replaced by the vertices of the next grid inside their
- * valid sphere (valid radius = that grid's interval), each vertex once. */
-static lu_result split_level(lu_gr_state *st, int level, int first, int count, double threshold, bool *added,
+ * valid sphere (valid radius = that grid's interval), each vertex once;
+ * *vertex gets each child's vertex index (malloc'd, NULL when none). */
+static lu_result split_level(lu_gr_state *st, int level, int first, int count, double threshold, int **vertex,
                              lu_error *err) {
-    *added = false;
-    lu_vec3 ext = lu_v3_sub(st->box.hi, st->box.lo);
-    float h = lu_v3_maxc(ext) / (float)(16 << level);
-    int n[3] = {(int)floorf(ext.x / h) + 1, (int)floorf(ext.y / h) + 1, (int)floorf(ext.z / h) + 1};
+    int n[3];
+    float h = level_grid(st, level, n);
     size_t nv = (size_t)n[0] * n[1] * n[2];
+    int children = 0, cap = 0;
+    *vertex = NULL;
     unsigned char *mark = calloc(nv, 1);
     if (!mark) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory splitting");
     int splits = 0;
@@ -220,7 +324,13 @@ static lu_result split_level(lu_gr_state *st, int level, int first, int count, d
                     if (mark[id]) continue;
                     mark[id] = 1;
                     r = add_sample(st, q, h, 1.0f, h / 3.0f, tau, err);
-                    *added = true;
+                    if (r == LU_OK && children == cap) {
+                        cap = cap ? 2 * cap : 1024;
+                        int *v = realloc(*vertex, (size_t)cap * sizeof(int));
+                        if (v) *vertex = v;
+                        else r = lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory splitting");
+                    }
+                    if (r == LU_OK) (*vertex)[children++] = (int)id;
                 }
     }
     free(mark);
@@ -290,29 +400,47 @@ static lu_result build_cells(lu_gr_state *st, lu_error *err) {
     return LU_OK;
 }
 
-/* Samples: roots, then splitting levels, the final set and its cell lists. */
-lu_result lu_gr_build_samples(lu_gr_state *st, const lu_scene *scene, int levels, lu_error *err) {
-    st->n = 0;
-    lu_result r = root_samples(st, scene, err);
-    if (r != LU_OK) return r;
-    int roots = st->n;
+/* Samples: roots, then splitting levels, the final set and its cell lists.
+ * keep: the roots' evaluations and the kept ones of split vertices are
+ * still valid (only tau_v, the splitting and what follows are redone). */
+lu_result lu_gr_build_samples(lu_gr_state *st, const lu_scene *scene, int levels, bool keep, lu_error *err) {
+    lu_result r = LU_OK;
+    int want = levels > 0 ? 1 : 0;
+    if (!keep) {
+        st->n = 0;
+        r = root_samples(st, scene, err);
+        if (r == LU_OK) r = eval_records(st, scene, st->smp, st->n, want, st->Ev, err);
+        if (r == LU_OK) r = memo_reset(st, levels, err);
+        if (r != LU_OK) return r;
+        st->nroots = st->n;
+        st->nfill = st->stats.fill_samples;
+    }
+    int roots = st->n = st->nroots;
+    memset(st->active, 1, (size_t)roots);
     st->stats.root_samples = roots;
+    st->stats.fill_samples = st->nfill;
+    memset(st->stats.level_samples, 0, sizeof st->stats.level_samples);
+    memset(st->stats.split, 0, sizeof st->stats.split);
+    st->stats.level_samples[0] = roots;
+    if (want) r = view_tau(st, scene, roots, err);
+    for (int j = 0; j < roots && want; j++) st->E[j] = st->Ev[j] * st->tau[j];
     int first = 0, count = roots;
-    double threshold = 0.0;
-    for (int level = 0; level <= levels; level++) {
-        bool more = level < levels;
-        r = eval_samples(st, scene, first, count, more ? 1 : 0, err);
-        if (r != LU_OK) return r;
-        st->stats.level_samples[level] = count;
-        if (!more) break;
-        if (level == 0) threshold = st->p[P_EPSILON] * error_unit(st, roots);
-        bool added;
-        r = split_level(st, level, first, count, threshold, &added, err);
-        if (r != LU_OK) return r;
-        if (!added) break;
+    double threshold = want ? st->p[P_EPSILON] * error_unit(st, roots) : 0.0;
+    for (int level = 0; level < levels && r == LU_OK; level++) {
+        int *vertex = NULL;
+        r = split_level(st, level, first, count, threshold, &vertex, err);
         first += count;
         count = st->n - first;
+        if (r == LU_OK && count > 0) {
+            int more = level + 1 < levels ? 1 : 0;
+            r = children(st, scene, level, first, vertex, more, err);
+            for (int j = first; j < st->n && more; j++) st->E[j] = st->Ev[j] * st->tau[j];
+            st->stats.level_samples[level + 1] = count;
+        }
+        free(vertex);
+        if (count == 0) break;
     }
+    if (r != LU_OK) return r;
     /* The final set: every sample not split, over all levels. */
     free(st->final);
     st->final = malloc((st->n ? (size_t)st->n : 1u) * LU_K_GR_SAMPLE_FLOATS * sizeof(float));
