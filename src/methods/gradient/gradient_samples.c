@@ -416,13 +416,14 @@ lu_result lu_gr_build_samples(lu_gr_state *st, const lu_scene *scene, int levels
         st->nfill = st->stats.fill_samples;
     }
     int roots = st->n = st->nroots;
-    memset(st->active, 1, (size_t)roots);
+    if (roots) memset(st->active, 1, (size_t)roots);
     st->stats.root_samples = roots;
     st->stats.fill_samples = st->nfill;
     memset(st->stats.level_samples, 0, sizeof st->stats.level_samples);
     memset(st->stats.split, 0, sizeof st->stats.split);
     st->stats.level_samples[0] = roots;
     if (want) r = view_tau(st, scene, roots, err);
+    if (r != LU_OK) return r;
     for (int j = 0; j < roots && want; j++) st->E[j] = st->Ev[j] * st->tau[j];
     int first = 0, count = roots;
     double threshold = want ? st->p[P_EPSILON] * error_unit(st, roots) : 0.0;
