@@ -284,6 +284,51 @@ static void test_splitting(void) {
     lu_scene_destroy(&s);
 }
 
+/* Between frames: a camera move keeps every evaluation (isotropic phase)
+ * and evaluates only split vertices no earlier frame evaluated; moving the
+ * camera back evaluates nothing and gives the first frame again, bit for
+ * bit; a light move evaluates everything again. */
+static void test_kept_evaluations(void) {
+    lu_scene s;
+    if (!load_small("smoke_glow", 32, 24, &s)) return;
+    CHECK(s.media[0].phase_g == 0.0f);
+    lu_error err = {0};
+    lu_kvlist kv = {0};
+    lu_renderer *r = NULL;
+    CHECK_OK(lu_renderer_create("gradient", &s, &kv, LU_BACKEND_CPU, &r, &err), &err);
+    if (!r) return;
+    lu_image a = {0}, b = {0}, c = {0}, d = {0};
+    lu_gradient_stats sa, sb, sc, sd;
+    lu_vec3 home = s.camera.position;
+    CHECK_OK(lu_renderer_render(r, &s, &a, &err), &err);
+    CHECK(lu_gradient_last_stats(r, &sa));
+    int all = sa.level_samples[0] + sa.level_samples[1] + sa.level_samples[2] + sa.level_samples[3];
+    CHECK_MSG(sa.level_samples[1] > 0 && sa.evaluated == all, "first frame: %d evaluated of %d", sa.evaluated, all);
+    s.camera.position = lu_v3_add(s.camera.look_at, lu_v3_scale(lu_v3_sub(home, s.camera.look_at), 0.7f));
+    CHECK_OK(lu_renderer_render(r, &s, &b, &err), &err);
+    CHECK(lu_gradient_last_stats(r, &sb));
+    int all_b = sb.level_samples[0] + sb.level_samples[1] + sb.level_samples[2] + sb.level_samples[3];
+    CHECK_MSG(sb.evaluated <= all_b - sb.level_samples[0], "camera move: %d evaluated of %d", sb.evaluated, all_b);
+    s.camera.position = home;
+    CHECK_OK(lu_renderer_render(r, &s, &c, &err), &err);
+    CHECK(lu_gradient_last_stats(r, &sc));
+    CHECK_MSG(sc.evaluated == 0, "camera back: %d evaluated", sc.evaluated);
+    CHECK(sc.samples == sa.samples && memcmp(a.rgb, c.rgb, (size_t)a.width * a.height * 3 * sizeof(float)) == 0);
+    s.lights[0].position = lu_v3_add(s.lights[0].position, lu_v3(0.1f, 0.0f, 0.0f));
+    CHECK_OK(lu_renderer_render(r, &s, &d, &err), &err);
+    CHECK(lu_gradient_last_stats(r, &sd));
+    int all_d = sd.level_samples[0] + sd.level_samples[1] + sd.level_samples[2] + sd.level_samples[3];
+    CHECK_MSG(sd.evaluated == all_d, "light move: %d evaluated of %d", sd.evaluated, all_d);
+    fprintf(stderr, "  evaluated: first %d, camera move %d of %d, back %d, light move %d\n", sa.evaluated, sb.evaluated,
+            all_b, sc.evaluated, sd.evaluated);
+    lu_image_destroy(&a);
+    lu_image_destroy(&b);
+    lu_image_destroy(&c);
+    lu_image_destroy(&d);
+    lu_renderer_destroy(r);
+    lu_scene_destroy(&s);
+}
+
 /* Images against the reference: tolerances are the measured errors at this
  * size (docs/gradient.md) with headroom, far below the paper's 4.3 %. */
 static void check_scene(const char *name, double tol_gradient, double tol_pervoxel, double tol_rbf_min) {
@@ -344,6 +389,7 @@ int main(void) {
     RUN_TEST(test_interpolation_linear);
     RUN_TEST(test_gauss_fit);
     RUN_TEST(test_splitting);
+    RUN_TEST(test_kept_evaluations);
     RUN_TEST(test_smoke_glow);
     RUN_TEST(test_spot_shaft);
     RUN_TEST(test_bad_input);

@@ -3,7 +3,8 @@
  * of the pass selected by u_pass:
  *   0  sample evaluation: F, gradient, E_j, tau (u_count samples, in place);
  *   1  radiance grid: one voxel each (gather over the cell lists, or traced);
- *   2  view march: one pixel each (lu_view_march.h's march with the grid source). */
+ *   2  view march: one pixel each (lu_view_march.h's march with the grid source);
+ *   3  tau_v of the samples (u_count, into the odd floats of ErrTau). */
 layout(local_size_x = 64) in;
 
 #include "kernels/lu_scene_gpu.glsl"
@@ -90,6 +91,9 @@ void main() {
         gr_field[3 * i] = v.x;
         gr_field[3 * i + 1] = v.y;
         gr_field[3 * i + 2] = v.z;
+    } else if (u_pass == 3) {
+        int b = i * LU_K_GR_SAMPLE_FLOATS;
+        gr_et[2 * i + 1] = lu_k_gr_view_tau(0, G, vec3(gr_samples[b], gr_samples[b + 1], gr_samples[b + 2]));
     } else {
         int w = lu_scene_width();
         int x = i % w, y = i / w;

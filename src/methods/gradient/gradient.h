@@ -31,6 +31,7 @@ typedef struct lu_gradient_frame {
 typedef struct lu_gradient_stats {
     int samples;                 /* final samples (union over levels) */
     int root_samples;            /* initial samples (including the coverage fill) */
+    int evaluated;               /* samples evaluated in the last frame (the others were kept) */
     int fill_samples;            /* coverage-fill samples among them */
     int level_samples[4];        /* samples evaluated per level */
     int split[4];                /* samples split per level */
@@ -52,10 +53,14 @@ lu_result lu_gradient_gpu_create(const lu_scene *scene, lu_gradient_gpu **out, l
  * as pairs. */
 lu_result lu_gradient_gpu_eval(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, int first,
                                int count, int want_error, const float *tau_in, float *err_tau, lu_error *err);
-/* Builds the radiance grid (interpolation or per-voxel tracing) and marches
- * the camera rays into out. */
-lu_result lu_gradient_gpu_render(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, lu_image *out,
-                                 double *ms_field, double *ms_march, lu_error *err);
+/* tau_v (lu_k_gr_view_tau) of f->samples[0 .. count) into tau. */
+lu_result lu_gradient_gpu_view_tau(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, int count,
+                                   float *tau, lu_error *err);
+/* Builds the radiance grid (interpolation or per-voxel tracing) when
+ * rebuild is set, else keeps the one built last, and marches the camera rays
+ * into out. */
+lu_result lu_gradient_gpu_render(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, bool rebuild,
+                                 lu_image *out, double *ms_field, double *ms_march, lu_error *err);
 void lu_gradient_gpu_destroy(lu_gradient_gpu *g);
 
 #endif

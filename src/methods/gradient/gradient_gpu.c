@@ -12,15 +12,17 @@
 
 /* Bindings above the scene: the media-ray inputs (as raymarch.comp), then this method's. */
 enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SAMPLES, B_CELLS, B_SURF, B_FIELD, B_PARAMS, B_ET, B_BMAP, B_COUNT };
-enum { PASS_EVAL = 0, PASS_FIELD = 1, PASS_MARCH = 2 };
+enum { PASS_EVAL = 0, PASS_FIELD = 1, PASS_MARCH = 2, PASS_TAU = 3 };
 
 struct lu_gradient_gpu {
     lu_gpu_context *ctx;
     lu_gpu_program *prog;
     lu_gpu_scene *scene;
     lu_gpu_buffer *buf[B_COUNT];
-    unsigned maps_version, bmap_version;
-    bool maps_uploaded, bmap_uploaded;
+    /* What is on the GPU already: media-ray versions (methods/common/media_ray.h). */
+    unsigned maps_version, bmap_version, hits_version, surf_hits_version, surf_vis_version;
+    bool maps_uploaded, bmap_uploaded, hits_uploaded, surf_uploaded;
+    size_t surf_bytes;
 };
 
 lu_result lu_gradient_gpu_create(const lu_scene *scene, lu_gradient_gpu **out, lu_error *err) {
@@ -57,8 +59,15 @@ static lu_result bind_common(lu_gradient_gpu *g, const lu_scene *scene, const lu
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
     const lu_media_rays *mr = f->mr;
     size_t pixels = (size_t)f->width * f->height, texels = (size_t)mr->shadow_res * mr->shadow_res;
-    if (r == LU_OK) r = put(g, B_HITS, mr->hits, pixels * LU_MR_HIT_FLOATS * sizeof(float), err);
-    if (r == LU_OK) r = put(g, B_SPANS, mr->spans, pixels * (size_t)f->medium_count * 2 * sizeof(float), err);
+    if (r == LU_OK) {
+        /* Camera hits and spans change only with the camera and the geometry. */
+        bool same = g->hits_uploaded && g->hits_version == mr->hits_version;
+        r = put(g, B_HITS, same ? NULL : mr->hits, pixels * LU_MR_HIT_FLOATS * sizeof(float), err);
+        if (r == LU_OK)
+            r = put(g, B_SPANS, same ? NULL : mr->spans, pixels * (size_t)f->medium_count * 2 * sizeof(float), err);
+        g->hits_uploaded = r == LU_OK;
+        g->hits_version = mr->hits_version;
+    }
     if (r == LU_OK) r = put(g, B_VIEWS, mr->views_packed, (size_t)mr->view_count * LU_RM_VIEW_FLOATS * sizeof(float), err);
     if (r == LU_OK) r = put(g, B_TABLE, mr->view_table, (size_t)f->light_count * 2 * sizeof(int), err);
     if (r == LU_OK) {
@@ -106,36 +115,67 @@ lu_result lu_gradient_gpu_eval(lu_gradient_gpu *g, const lu_scene *scene, const 
     return r;
 }
 
-lu_result lu_gradient_gpu_render(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, lu_image *out,
-                                 double *ms_field, double *ms_march, lu_error *err) {
+lu_result lu_gradient_gpu_view_tau(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, int count,
+                                   float *tau, lu_error *err) {
+    if (count <= 0) return LU_OK;
+    lu_result r = bind_common(g, scene, f, err);
+    if (r == LU_OK) r = put(g, B_SAMPLES, f->samples, (size_t)count * LU_K_GR_SAMPLE_FLOATS * sizeof(float), err);
+    if (r == LU_OK) r = put(g, B_ET, NULL, (size_t)count * 2 * sizeof(float), err);
+    if (r != LU_OK) return r;
+    lu_gpu_uniform_int(g->prog, "u_pass", PASS_TAU);
+    lu_gpu_uniform_int(g->prog, "u_count", count);
+    r = lu_gpu_dispatch(g->prog, (unsigned)(count + 63) / 64, 1, 1, err);
+    float *et = r == LU_OK ? malloc((size_t)count * 2 * sizeof(float)) : NULL;
+    if (r == LU_OK && !et) r = lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory");
+    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_ET], 0, et, (size_t)count * 2 * sizeof(float), err);
+    for (int i = 0; r == LU_OK && i < count; i++) tau[i] = et[2 * i + 1];
+    free(et);
+    return r;
+}
+
+lu_result lu_gradient_gpu_render(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, bool rebuild,
+                                 lu_image *out, double *ms_field, double *ms_march, lu_error *err) {
     const lu_k_gr_params *G = &f->G;
+    const lu_media_rays *mr = f->mr;
     size_t pixels = (size_t)f->width * f->height;
     size_t nv = (size_t)G->nx * G->ny * G->nz;
     size_t nc = (size_t)G->cx * G->cy * G->cz;
     double t0 = lu_gpu_time_begin(g->ctx);
     lu_result r = bind_common(g, scene, f, err);
-    if (r == LU_OK) r = put(g, B_SAMPLES, f->samples, (size_t)f->sample_count * LU_K_GR_SAMPLE_FLOATS * sizeof(float), err);
+    /* Samples and cell lists: uploaded with a rebuilt sample set, otherwise
+     * the ones on the GPU are the frame's (only bound again). */
+    size_t sample_bytes = (size_t)f->sample_count * LU_K_GR_SAMPLE_FLOATS * sizeof(float);
+    if (r == LU_OK) r = put(g, B_SAMPLES, rebuild ? f->samples : NULL, sample_bytes, err);
     /* cell begins then items in one buffer (the shader's storage-block count stays at 16) */
     size_t items = (size_t)f->cell_item_count;
     if (r == LU_OK) r = put(g, B_CELLS, NULL, (nc + 1 + items) * sizeof(int), err);
-    if (r == LU_OK) r = lu_gpu_buffer_upload(g->buf[B_CELLS], 0, f->cell_begin, (nc + 1) * sizeof(int), err);
-    if (r == LU_OK && items)
+    if (r == LU_OK && rebuild) r = lu_gpu_buffer_upload(g->buf[B_CELLS], 0, f->cell_begin, (nc + 1) * sizeof(int), err);
+    if (r == LU_OK && rebuild && items)
         r = lu_gpu_buffer_upload(g->buf[B_CELLS], (nc + 1) * sizeof(int), f->cell_items, items * sizeof(int), err);
     /* boundary materials, the camera rays' span normals, then each light's
-     * visibility at the camera rays' opaque hits (one buffer, same reason) */
+     * visibility at the camera rays' opaque hits (one buffer, same reason);
+     * the per-pixel parts only when the media rays rebuilt them */
     size_t mats = (size_t)f->G.surf_normals_at * sizeof(float);
     size_t nrm = pixels * (size_t)f->medium_count * LU_MR_NORMAL_FLOATS * sizeof(float);
     size_t vis = pixels * (size_t)f->light_count * sizeof(float);
+    bool same = g->surf_uploaded && g->surf_bytes == mats + nrm + vis && g->surf_hits_version == mr->hits_version &&
+                g->surf_vis_version == mr->vis_version;
     if (r == LU_OK) r = put(g, B_SURF, NULL, mats + nrm + vis, err);
     if (r == LU_OK) r = lu_gpu_buffer_upload(g->buf[B_SURF], 0, f->surf, mats, err);
-    if (r == LU_OK && f->mr->normals) r = lu_gpu_buffer_upload(g->buf[B_SURF], mats, f->mr->normals, nrm, err);
-    if (r == LU_OK && vis) r = lu_gpu_buffer_upload(g->buf[B_SURF], mats + nrm, f->mr->surface_vis, vis, err);
+    if (r == LU_OK && !same && mr->normals) r = lu_gpu_buffer_upload(g->buf[B_SURF], mats, mr->normals, nrm, err);
+    if (r == LU_OK && !same && vis) r = lu_gpu_buffer_upload(g->buf[B_SURF], mats + nrm, mr->surface_vis, vis, err);
+    g->surf_uploaded = r == LU_OK;
+    g->surf_bytes = mats + nrm + vis;
+    g->surf_hits_version = mr->hits_version;
+    g->surf_vis_version = mr->vis_version;
     if (r == LU_OK) r = put(g, B_FIELD, NULL, nv * 3 * sizeof(float), err);
     if (r == LU_OK) r = put(g, B_ET, NULL, 16, err);
     if (r != LU_OK) return r;
-    lu_gpu_uniform_int(g->prog, "u_pass", PASS_FIELD);
-    lu_gpu_uniform_int(g->prog, "u_count", (int)nv);
-    r = lu_gpu_dispatch(g->prog, (unsigned)((nv + 63) / 64), 1, 1, err);
+    if (rebuild) {
+        lu_gpu_uniform_int(g->prog, "u_pass", PASS_FIELD);
+        lu_gpu_uniform_int(g->prog, "u_count", (int)nv);
+        r = lu_gpu_dispatch(g->prog, (unsigned)((nv + 63) / 64), 1, 1, err);
+    }
     double t1 = lu_gpu_time_end(g->ctx, t0);
     *ms_field = 1e3 * t1;
     double t2 = lu_gpu_time_begin(g->ctx);

@@ -294,6 +294,13 @@ LU_FN float lu_k_gr_total_density(LU_CTX_PARAM, vec3 x) {
 
 LU_FN vec3 lu_k_gr_axis(int k) { return lu_v3(k == 0 ? 1.0f : 0.0f, k == 1 ? 1.0f : 0.0f, k == 2 ? 1.0f : 0.0f); }
 
+/* tau_v of Eq. 5: the transmittance from x to the camera, mean over colour channels. */
+LU_FN float lu_k_gr_view_tau(LU_CTX_PARAM, lu_k_gr_params G, vec3 x) {
+    vec3 tv = lu_v3_sub(G.cam, x);
+    float dist = lu_v3_len(tv);
+    return lu_v3_avg(lu_k_gr_transmittance(LU_CTX, x, lu_v3_scale(tv, 1.0f / lu_max(dist, 1e-20f)), dist, G.delta1));
+}
+
 /* Evaluates sample j at x with valid radius R: field value, gradient by
  * central differences (Delta2), and when want_error != 0 the local shading
  * error of Eq. 5,
@@ -302,7 +309,8 @@ LU_FN vec3 lu_k_gr_axis(int k) { return lu_v3(k == 0 ? 1.0f : 0.0f, k == 1 ? 1.0
  * |.| the mean over colour channels, N_i the normaliser (1 without
  * normalising, so the error is in J). tau_v: transmittance from x to the
  * camera; when tau_in < 0 it is traced here (a root sample), otherwise the
- * ancestor's value is reused, as the paper does. */
+ * ancestor's value is reused, as the paper does. With tau_in = 1, E is the
+ * view-free part, exactly: E with tau_v is that times tau_v. */
 LU_FN void lu_k_gr_eval(LU_CTX_PARAM, lu_k_gr_params G, vec3 x, float R, float tau_in, int want_error, LU_OUT(vec3) F,
                         LU_OUT(vec3) gx, LU_OUT(vec3) gy, LU_OUT(vec3) gz, LU_OUT(float) E, LU_OUT(float) tau_out) {
     /* Point 0: x; 1..6: x +- Delta2 axes; 7..12: x +- R axes (error only).
@@ -327,11 +335,7 @@ LU_FN void lu_k_gr_eval(LU_CTX_PARAM, lu_k_gr_params G, vec3 x, float R, float t
     float tau = tau_in;
     float err = 0.0f;
     if (want_error != 0) {
-        if (tau < 0.0f) {
-            vec3 tv = lu_v3_sub(G.cam, x);
-            float dist = lu_v3_len(tv);
-            tau = lu_v3_avg(lu_k_gr_transmittance(LU_CTX, x, lu_v3_scale(tv, 1.0f / lu_max(dist, 1e-20f)), dist, G.delta1));
-        }
+        if (tau < 0.0f) tau = lu_k_gr_view_tau(LU_CTX, G, x);
         for (int i = 7; i < 13; i++) {
             int k = (i + 5) % 6; /* axis 2k or 2k+1: +, - */
             float sgn = (k % 2) == 0 ? 1.0f : -1.0f;
