@@ -90,6 +90,7 @@ static const product k_products[] = {
     {"media_rays.maps", LU_CHANGE_LIGHTS | LU_CHANGE_GEOMETRY, false},
     {"media_rays.boundary_maps", LU_CHANGE_LIGHTS | LU_CHANGE_GEOMETRY, false},
     {"media_rays.surface_vis", LU_CHANGE_CAMERA | LU_CHANGE_GEOMETRY, true},
+    {"view_march.occupancy", LU_CHANGE_MEDIA, false},
 };
 
 static int kernel_lights(const lu_scene *sc) {

@@ -24,6 +24,7 @@
 #include "methods/gradient/gradient.h"
 #include "methods/gradient/gradient_fit.h"
 #include "methods/common/media_ray.h"
+#include "methods/common/view_march.h"
 #include "methods/frame.h"
 #include "methods/methods.h"
 
@@ -61,6 +62,9 @@ static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k
 static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) {
     return c->mr->spans[((size_t)pixel * c->nm + m) * 2 + end];
 }
+static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz) {
+    return c->dens[m].data ? lu_majorant_at(&c->mr->majorants[m], bx, by, bz) : c->km[m].density_scale;
+}
 static inline lu_k_gr_params lu_k_gr_get(const struct lu_k_ctx *c) { return c->G; }
 static inline lu_vec3 lu_k_gr_field(const struct lu_k_ctx *c, int i) {
     const float *f = c->field + 3 * (size_t)i;
@@ -88,7 +92,7 @@ _Static_assert(LU_K_RM_MAX_MEDIA == 8, "lu_k_gr_inscatter takes dens[8]");
 
 /* ---- parameters: pervoxel's are the first P_PERVOXEL_COUNT ---- */
 enum {
-    P_STEPS, P_SHADOW_RES, P_GRID, P_DELTA1, P_NORMALIZE, P_PERVOXEL_COUNT,
+    P_STEPS, P_SHADOW_RES, P_GRID, P_DELTA1, P_NORMALIZE, P_T_CUT, P_PERVOXEL_COUNT,
     P_GAUSSIANS = P_PERVOXEL_COUNT, P_MAX_RADIUS, P_SEEDS, P_DELTA2, P_LEVELS, P_EPSILON, P_COUNT
 };
 
@@ -103,7 +107,8 @@ enum {
                   "volume tracing interval in density voxels (0: exact optical depth through the trilinear grid)"},   \
     [P_NORMALIZE] = {"normalize", LU_PARAM_CHOICE, 2, 0, 2, "none|falloff|emission",                                  \
                      "none: interpolate J as in the paper; falloff: J / (phase I/d^2); emission: J / (phase times "   \
-                     "what the light emits, spot cone included), multiplied back per march step (extensions)"},
+                     "what the light emits, spot cone included), multiplied back per march step (extensions)"},   \
+    [P_T_CUT] = LU_VIEW_MARCH_T_CUT_PARAM,
 
 static const lu_param_desc k_params_pervoxel[P_PERVOXEL_COUNT] = {GR_COMMON_PARAMS};
 
@@ -567,7 +572,7 @@ static void march_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     P.eps = st->frame.eps;
     P.jitter = 0;
     P.map_res = st->kctx.G.map_res;
-    P.pad = 0;
+    P.t_cut = st->frame.t_cut;
     for (int64_t y = begin; y < end; y++)
         for (int x = 0; x < c->width; x++) {
             int px = (int)(y * c->width + x);
@@ -615,6 +620,8 @@ static lu_result gr_render(void *state, const lu_frame *frame, lu_image *out, lu
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, st->nl, err);
     if (r == LU_OK) r = lu_media_rays_boundary_maps(&st->mr, frame, kl, st->nl, err);
     if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, st->nl, st->eps, err);
+    /* The CPU marches the reconstruction st->dens: its majorants are of it. */
+    if (r == LU_OK) r = lu_media_rays_majorants(&st->mr, frame, st->dens, err);
     if (r != LU_OK) return r;
     lu_gradient_stats keep = st->stats;
     memset(&st->stats, 0, sizeof st->stats);
@@ -673,6 +680,7 @@ static lu_result gr_render(void *state, const lu_frame *frame, lu_image *out, lu
     f->step = fmaxf(diag, 1e-6f) / (float)st->p[P_STEPS];
     f->eps = st->eps;
     f->jitter = 0;
+    f->t_cut = (float)st->p[P_T_CUT];
     f->width = c->width;
     f->height = c->height;
     f->medium_count = scene->medium_count;
