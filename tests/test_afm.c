@@ -48,7 +48,7 @@ static void build(built *b, const char *json, int res, int coefs, int samples) {
     lu_afm_map_init(&b->map, &b->scene, res, coefs, samples);
     if (r == LU_OK) r = lu_afm_map_views(&b->map, &b->scene, &b->mr, b->kl, b->nl, &err);
     CHECK_OK(r, &err);
-    if (r == LU_OK) r = lu_afm_map_build_cpu(&b->map, &b->scene, b->km, &err);
+    if (r == LU_OK) r = lu_afm_map_build_cpu(&b->map, &b->scene, b->km, NULL, &err);
     CHECK_OK(r, &err);
     b->ok = r == LU_OK;
 }
@@ -356,7 +356,7 @@ static void test_gpu_map_matches_cpu(const char *json_path) {
     int nl = lu_scene_kernel_lights(&s, kl);
     lu_afm_map_init(&map, &s, 32, 16, 64);
     CHECK_OK(lu_afm_map_views(&map, &s, &mr, kl, nl, &err), &err);
-    CHECK_OK(lu_afm_map_build_cpu(&map, &s, km, &err), &err);
+    CHECK_OK(lu_afm_map_build_cpu(&map, &s, km, NULL, &err), &err);
     size_t n = lu_afm_map_texels(&map) * (size_t)lu_afm_map_stride(&map);
     float *gpu_rec = calloc(n, sizeof(float));
     lu_afm_gpu *g = NULL;

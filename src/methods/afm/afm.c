@@ -215,7 +215,8 @@ int lu_afm_view_count(const lu_scene *scene) {
     return n;
 }
 
-lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km, lu_error *err) {
+lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km,
+                               const lu_view_march_frame *f, lu_error *err) {
     size_t texels = lu_afm_map_texels(map);
     size_t need = (texels ? texels : 1u) * (size_t)lu_afm_map_stride(map);
     if (need > map->records_cap) {
@@ -229,6 +230,7 @@ lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_
     j.ctx.media = scene->media;
     j.ctx.km = km;
     j.ctx.nm = scene->medium_count;
+    j.ctx.f = f;
     ctx_set_map(&j.ctx, map);
     lu_parallel_for((int64_t)map->view_count * map->res, 1, build_rows, &j, NULL);
     return LU_OK;
@@ -413,7 +415,7 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
                               st->mr.shadow_res, nl, st->t_cut};
         return lu_afm_gpu_render(st->gpu, scene, &g, out, err);
     }
-    r = lu_afm_map_build_cpu(&st->map, scene, st->km, err);
+    r = lu_afm_map_build_cpu(&st->map, scene, st->km, f, err);
     if (r != LU_OK) return r;
     memset(&st->kctx, 0, sizeof st->kctx);
     st->kctx.media = scene->media;

@@ -9,6 +9,7 @@
 #include "kernels/lu_medium.h"
 #include "kernels/lu_optics.h"
 #include "methods/common/media_ray.h"
+#include "methods/common/view_march.h"
 
 /* Floats per medium of a boundary surface record: albedo, shininess, specular, pad. */
 #define LU_AFM_SURFACE_FLOATS 8
@@ -47,7 +48,9 @@ lu_result lu_afm_map_views(lu_afm_map *map, const lu_scene *scene, const lu_medi
 int lu_afm_view_count(const lu_scene *scene);
 
 /* The map's records on the CPU (kernel lu_k_afm_build_texel per texel). */
-lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km, lu_error *err);
+/* f: the frame whose majorants let the build skip empty blocks (NULL: none skipped). */
+lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km,
+                               const lu_view_march_frame *f, lu_error *err);
 
 /* Transmittance from kernel light l to x looked up in a CPU-built map. */
 lu_vec3 lu_afm_map_transmittance(const lu_afm_map *map, int l, lu_vec3 x);
