@@ -50,7 +50,7 @@ static void build(built *b, const char *json, int res, int coefs, int samples) {
     lu_frame first = {.scene = &b->scene, .changed = LU_CHANGE_ALL, .lights_changed = ~0ull};
     if (r == LU_OK) r = lu_afm_map_views(&b->map, &first, &b->mr, b->nl, &err);
     CHECK_OK(r, &err);
-    if (r == LU_OK) r = lu_afm_map_build_cpu(&b->map, &b->scene, b->km, &err);
+    if (r == LU_OK) r = lu_afm_map_build_cpu(&b->map, &b->scene, b->km, NULL, &err);
     CHECK_OK(r, &err);
     b->ok = r == LU_OK;
 }
@@ -359,7 +359,7 @@ static void test_gpu_map_matches_cpu(const char *json_path) {
     lu_afm_map_init(&map, &s, 32, 16, 64);
     lu_frame first = {.scene = &s, .changed = LU_CHANGE_ALL, .lights_changed = ~0ull};
     CHECK_OK(lu_afm_map_views(&map, &first, &mr, nl, &err), &err);
-    CHECK_OK(lu_afm_map_build_cpu(&map, &s, km, &err), &err);
+    CHECK_OK(lu_afm_map_build_cpu(&map, &s, km, NULL, &err), &err);
     size_t n = lu_afm_map_texels(&map) * (size_t)lu_afm_map_stride(&map);
     float *gpu_rec = calloc(n, sizeof(float));
     lu_afm_gpu *g = NULL;

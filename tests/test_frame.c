@@ -145,6 +145,8 @@ static const product k_products[] = {
     /* the splitting, which weighs that error by the transmittance to the
      * camera, and the radiance grid interpolated from the final samples */
     {"gradient.radiance_grid", LU_CHANGE_LIGHTS | LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY | CAMERA_IF_VIEW, false},
+    /* the majorant grid of each medium's density (empty-space skipping) */
+    {"view_march.occupancy", LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY, false},
 };
 #define PRODUCTS ((int)(sizeof k_products / sizeof k_products[0]))
 

@@ -18,6 +18,7 @@
  *   media[9 m + 6] = sigma_s, w = 1 for a constant medium, 0 for a grid
  *   media[9 m + 7] = world bounds lo, w = 1 when bounded by a mesh
  *   media[9 m + 8] = world bounds hi, w = eta
+ *   then the majorant grids (lu_scene_layout.h)
  *   lights[3 l + 0] = position, w = type (LU_K_LIGHT_*)
  *   lights[3 l + 1] = direction, w = cos_inner
  *   lights[3 l + 2] = intensity, w = cos_outer */
@@ -112,6 +113,19 @@ float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index) {
     default: v = lu_grid_sample_tex(lu_scene_grid[7], p_index); break;
     }
     return v * s.w;
+}
+
+/* Majorant of block (bx, by, bz) of medium m (lu_scene_layout.h; 0 outside
+ * its block grid; a constant medium: its density), the hook of
+ * methods/common/lu_march_blocks.h and the tracking kernels. */
+float lu_k_majorant(LU_CTX_PARAM, int m, int bx, int by, int bz) {
+    vec4 s = lu_scene_media[LU_SCENE_MEDIUM_VEC4 * m + 4];
+    if (lu_scene_media[LU_SCENE_MEDIUM_VEC4 * m + 6].w != 0.0f) return s.w;
+    vec4 h = lu_scene_media[LU_SCENE_MAJORANT_HEADER + m];
+    int nx = int(h.x), ny = int(h.y), nz = int(h.z);
+    if (bx < 0 || by < 0 || bz < 0 || bx >= nx || by >= ny || bz >= nz) return 0.0f;
+    int k = int(h.w) + (bz * ny + by) * nx + bx;
+    return lu_scene_media[LU_SCENE_MAJORANT_DATA + k / 4][k % 4];
 }
 
 #endif

@@ -20,4 +20,14 @@
 #define LU_SCENE_MEDIUM_VEC4 9
 #define LU_SCENE_LIGHT_VEC4 3
 
+/* The media buffer continues, after LU_SCENE_MAX_MEDIA medium records, with
+ * each grid medium's majorant grid (methods/common/majorant.h, blocks of
+ * LU_SCENE_MAJORANT_BLOCK^3 voxels) for empty-space skipping: one header
+ * vec4 per medium at LU_SCENE_MAJORANT_HEADER + m (block counts x, y, z as
+ * floats; w: offset of its first value), then the values, four per vec4,
+ * from LU_SCENE_MAJORANT_DATA. */
+#define LU_SCENE_MAJORANT_BLOCK 8
+#define LU_SCENE_MAJORANT_HEADER (LU_SCENE_MAX_MEDIA * LU_SCENE_MEDIUM_VEC4)
+#define LU_SCENE_MAJORANT_DATA (LU_SCENE_MAJORANT_HEADER + LU_SCENE_MAX_MEDIA)
+
 #endif

@@ -252,7 +252,8 @@ int lu_afm_view_count(const lu_scene *scene) {
     return n;
 }
 
-lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km, lu_error *err) {
+lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km,
+                               const lu_view_march_frame *f, lu_error *err) {
     size_t texels = lu_afm_map_texels(map);
     size_t need = (texels ? texels : 1u) * (size_t)lu_afm_map_stride(map);
     if (need > map->records_cap) {
@@ -269,6 +270,7 @@ lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_
     j.ctx.media = scene->media;
     j.ctx.km = km;
     j.ctx.nm = scene->medium_count;
+    j.ctx.f = f;
     ctx_set_map(&j.ctx, map);
     for (int l = 0; l < map->nl; l++) {
         if (!lu_afm_has_light(map->rebuild, l)) continue;
@@ -288,7 +290,7 @@ lu_vec3 lu_afm_map_transmittance(const lu_afm_map *map, int l, lu_vec3 x) {
 
 /* ---- the method ---- */
 
-enum { P_COEFS, P_SAMPLES, P_MAP_RES, P_STEPS, P_JITTER, P_SHADOW_RES, P_COUNT };
+enum { P_COEFS, P_SAMPLES, P_MAP_RES, P_STEPS, P_JITTER, P_SHADOW_RES, P_T_CUT, P_COUNT };
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_COEFS] = {"coefs", LU_PARAM_INT, 16, 1, LU_K_AFM_MAX_COEFS, NULL,
@@ -303,11 +305,13 @@ static const lu_param_desc k_params[P_COUNT] = {
                   "shift each pixel's samples by a per-pixel hash within a step (noise instead of banding)"},
     [P_SHADOW_RES] = {"shadow_res", LU_PARAM_INT, 512, 16, 4096, NULL,
                       "shadow map resolution per light view (opaque objects)"},
+    [P_T_CUT] = LU_VIEW_MARCH_T_CUT_PARAM,
 };
 
 typedef struct afm_state {
     lu_backend backend;
     int steps, jitter;
+    float t_cut;
     lu_media_rays mr;
     lu_afm_map map;
     lu_k_medium *km;
@@ -342,6 +346,7 @@ static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_bac
     st->backend = backend;
     st->steps = (int)params[P_STEPS];
     st->jitter = (int)params[P_JITTER];
+    st->t_cut = (float)params[P_T_CUT];
     int res = (int)params[P_MAP_RES];
     if (res == 0) res = backend == LU_BACKEND_GPU ? 512 : 256;
     lu_result r = LU_OK;
@@ -445,19 +450,20 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, nl, err);
     if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, nl, st->eps, err);
+    if (r == LU_OK) r = lu_media_rays_majorants(&st->mr, frame, NULL, err);
     if (r == LU_OK) r = lu_afm_map_views(&st->map, frame, &st->mr, nl, err);
     if (r != LU_OK) return r;
 
     lu_view_march_frame *f = &st->frame;
-    lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl);
+    lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl, st->t_cut);
     if (st->backend == LU_BACKEND_GPU) {
         lu_afm_gpu_frame g = {&st->mr, &st->map, st->surfaces, st->surfaces_version, scene->background, f->step,
-                              f->eps, st->jitter, st->mr.shadow_res, nl};
+                              f->eps, st->jitter, st->mr.shadow_res, nl, st->t_cut};
         r = lu_afm_gpu_render(st->gpu, scene, &g, out, err);
         if (r == LU_OK) lu_afm_map_built(&st->map, frame);
         return r;
     }
-    r = lu_afm_map_build_cpu(&st->map, scene, st->km, err);
+    r = lu_afm_map_build_cpu(&st->map, scene, st->km, f, err);
     if (r != LU_OK) return r;
     lu_afm_map_built(&st->map, frame);
     memset(&st->kctx, 0, sizeof st->kctx);

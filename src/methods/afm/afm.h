@@ -9,6 +9,7 @@
 #include "kernels/lu_medium.h"
 #include "kernels/lu_optics.h"
 #include "methods/common/media_ray.h"
+#include "methods/common/view_march.h"
 
 /* Floats per medium of a boundary surface record: albedo, shininess, specular, pad. */
 #define LU_AFM_SURFACE_FLOATS 8
@@ -60,8 +61,10 @@ void lu_afm_map_built(lu_afm_map *map, const lu_frame *f);
 int lu_afm_view_count(const lu_scene *scene);
 
 /* The records of the map->rebuild lights' views on the CPU (kernel
- * lu_k_afm_build_texel per texel); the other views' records are kept. */
-lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km, lu_error *err);
+ * lu_k_afm_build_texel per texel); the other views' records are kept.
+ * f: the frame whose majorants let the build skip empty blocks (NULL: none skipped). */
+lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_k_medium *km,
+                               const lu_view_march_frame *f, lu_error *err);
 
 /* Transmittance from kernel light l to x looked up in a CPU-built map. */
 lu_vec3 lu_afm_map_transmittance(const lu_afm_map *map, int l, lu_vec3 x);
@@ -80,6 +83,7 @@ typedef struct lu_afm_gpu_frame {
     lu_vec3 background;
     float step, eps;
     int jitter, shadow_res, nl;
+    float t_cut;                /* view march early termination (lu_view_march.h) */
 } lu_afm_gpu_frame;
 
 lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *err);

@@ -19,6 +19,7 @@ layout(std430, binding = LU_RM_BINDING_NEXT + 6) readonly buffer SurfaceVis { fl
 uniform float u_step;
 uniform float u_eps;
 uniform int u_jitter;
+uniform float u_t_cut;
 uniform vec3 u_background;
 uniform int u_res;
 uniform int u_coefs;
@@ -54,7 +55,7 @@ void main() {
     R.eps = u_eps;
     R.jitter = u_jitter;
     R.map_res = u_map_res;
-    R.pad = 0;
+    R.t_cut = u_t_cut;
     int px = y * w + x;
     vec3 d = lu_k_camera_dir(lu_scene_camera(), float(x) + 0.5, float(y) + 0.5);
     vec3 L = lu_k_afm_radiance(0, lu_k_afm_params_get(0), R, px, lu_scene_camera_position(), d, lu_k_rm_jitter(R.jitter, px));

@@ -30,7 +30,8 @@
  * [5] unused, then coefficient k of channel c at 6 + k * C + c.
  *
  * Hooks the backend defines before including this file (beside those of
- * lu_march.h and lu_medium.h: lu_k_density, lu_k_medium_count, lu_k_medium_get):
+ * lu_march.h and lu_medium.h: lu_k_density, lu_k_medium_count, lu_k_medium_get;
+ * and lu_k_majorant of lu_march_blocks.h: the build skips empty blocks):
  *   build:  float lu_k_afm_lspan(LU_CTX_PARAM, int texel, int m, int k)
  *             k 0/1: start/end of medium m's first span on the texel's light ray
  *             (boundary mesh, from the CPU's ray tracer; unbounded: 0, LU_K_FAR),
@@ -66,6 +67,7 @@
 #include "kernels/lu_kernel.h"
 #include "methods/common/lu_lightview.h"
 #include "methods/common/lu_march.h"
+#include "methods/common/lu_march_blocks.h"
 #include "kernels/lu_medium.h"
 #include "kernels/lu_optics.h"
 
@@ -124,8 +126,8 @@ LU_FN vec3 lu_k_afm_tau(LU_CTX_PARAM, int texel, lu_k_lightray ray, float t0, fl
             !lu_k_box_clip(md.bounds_lo, md.bounds_hi, ray.origin, ray.dir, lu_max(lo, t0), lu_min(hi, t1), LU_REF(a), LU_REF(b)))
             continue;
         float od = md.constant != 0 ? md.density_scale * (b - a)
-                                    : lu_k_optical_depth(LU_CTX, m, lu_k_medium_point(md, ray.origin),
-                                                         lu_k_medium_vector(md, ray.dir), a, b, md.max_pieces);
+                                    : lu_k_optical_depth_blocks(LU_CTX, m, lu_k_medium_point(md, ray.origin),
+                                                                lu_k_medium_vector(md, ray.dir), a, b, md.max_pieces);
         tau = lu_v3_madd(tau, lu_k_medium_sigma_t(md), od);
     }
     return tau;

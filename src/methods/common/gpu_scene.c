@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "methods/common/majorant.h"
 #include "methods/methods.h"
 
 struct lu_gpu_scene {
@@ -12,6 +13,7 @@ struct lu_gpu_scene {
     int grid_dims[LU_SCENE_MAX_MEDIA][3];    /* 0 for constant media */
     uint64_t grid_generation[LU_SCENE_MAX_MEDIA];   /* lu_grid.generation of the texture's values */
     lu_gpu_texture *grid[LU_SCENE_MAX_MEDIA];
+    lu_majorant maj[LU_SCENE_MAX_MEDIA];     /* of the texture's values (lu_scene_layout.h) */
     lu_gpu_buffer *header, *media, *lights;
     size_t lights_bytes;
 };
@@ -67,10 +69,14 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
     int nl = scene->light_count > 0 ? scene->light_count : 1;
     lu_k_light *kl = calloc((size_t)nl, sizeof *kl);
     float *lights = calloc((size_t)nl * LU_SCENE_LIGHT_VEC4 * 4, sizeof(float));
-    float media[LU_SCENE_MAX_MEDIA * LU_SCENE_MEDIUM_VEC4 * 4];
-    if (!kl || !lights) {
+    size_t maj_floats = 0;
+    for (int m = 0; m < gs->medium_count; m++) maj_floats += (size_t)gs->maj[m].nx * gs->maj[m].ny * gs->maj[m].nz;
+    size_t media_floats = (size_t)LU_SCENE_MAJORANT_DATA * 4 + (maj_floats + 3) / 4 * 4;
+    float *media = calloc(media_floats, sizeof(float));
+    if (!kl || !lights || !media) {
         free(kl);
         free(lights);
+        free(media);
         return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
     }
     int light_count = lu_scene_kernel_lights(scene, kl);
@@ -80,7 +86,18 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
         put4(p + 4, kl[l].direction, kl[l].cos_inner);
         put4(p + 8, kl[l].intensity, kl[l].cos_outer);
     }
-    memset(media, 0, sizeof media);
+    size_t at = 0;
+    for (int m = 0; m < gs->medium_count; m++) {
+        const lu_majorant *mj = &gs->maj[m];
+        size_t n = (size_t)mj->nx * mj->ny * mj->nz;
+        float *h = media + (size_t)(LU_SCENE_MAJORANT_HEADER + m) * 4;
+        h[0] = (float)mj->nx;
+        h[1] = (float)mj->ny;
+        h[2] = (float)mj->nz;
+        h[3] = (float)at;
+        if (n) memcpy(media + (size_t)LU_SCENE_MAJORANT_DATA * 4 + at, mj->dmax, n * sizeof(float));
+        at += n;
+    }
     for (int m = 0; m < scene->medium_count; m++) {
         lu_k_medium k = lu_medium_to_kernel(&scene->media[m]);
         float *p = media + (size_t)m * LU_SCENE_MEDIUM_VEC4 * 4;
@@ -113,8 +130,9 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
         r = lu_gpu_buffer_upload(gs->lights, 0, lights, lbytes, err);
     }
     if (r == LU_OK) {
-        if (!gs->media) r = lu_gpu_buffer_create(gs->ctx, sizeof media, media, &gs->media, err);
-        else r = lu_gpu_buffer_upload(gs->media, 0, media, sizeof media, err);
+        size_t bytes = media_floats * sizeof(float);
+        if (!gs->media) r = lu_gpu_buffer_create(gs->ctx, bytes, media, &gs->media, err);
+        else r = lu_gpu_buffer_upload(gs->media, 0, media, bytes, err);
     }
     if (r == LU_OK) {
         if (!gs->header) r = lu_gpu_buffer_create(gs->ctx, sizeof header, header, &gs->header, err);
@@ -122,6 +140,7 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
     }
     free(kl);
     free(lights);
+    free(media);
     return r;
 }
 
@@ -143,6 +162,7 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
         gs->grid_dims[m][1] = med->grid.ny;
         gs->grid_dims[m][2] = med->grid.nz;
         r = lu_gpu_texture3d_create(ctx, med->grid.nx, med->grid.ny, med->grid.nz, med->grid.data, &gs->grid[m], err);
+        if (r == LU_OK) r = lu_majorant_build(&med->grid, LU_SCENE_MAJORANT_BLOCK, &gs->maj[m], err);
         gs->grid_generation[m] = med->grid.generation;
     }
     if (r == LU_OK) r = upload_records(gs, scene, err);
@@ -173,6 +193,11 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, lu_error 
         const lu_grid *g = &scene->media[m].grid;
         if (!gs->grid[m] || g->generation == gs->grid_generation[m]) continue;
         r = lu_gpu_texture3d_upload(gs->grid[m], g->data, err);
+        /* Same block counts (same dims): the buffer keeps its size. */
+        if (r == LU_OK) {
+            lu_majorant_destroy(&gs->maj[m]);
+            r = lu_majorant_build(g, LU_SCENE_MAJORANT_BLOCK, &gs->maj[m], err);
+        }
         if (r == LU_OK) gs->grid_generation[m] = g->generation;
     }
     return r == LU_OK ? upload_records(gs, scene, err) : r;
@@ -189,7 +214,10 @@ lu_result lu_gpu_scene_bind(lu_gpu_scene *gs, lu_error *err) {
 
 void lu_gpu_scene_destroy(lu_gpu_scene *gs) {
     if (!gs) return;
-    for (int m = 0; m < LU_SCENE_MAX_MEDIA; m++) lu_gpu_texture_destroy(gs->grid[m]);
+    for (int m = 0; m < LU_SCENE_MAX_MEDIA; m++) {
+        lu_gpu_texture_destroy(gs->grid[m]);
+        lu_majorant_destroy(&gs->maj[m]);
+    }
     lu_gpu_buffer_destroy(gs->header);
     lu_gpu_buffer_destroy(gs->media);
     lu_gpu_buffer_destroy(gs->lights);

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "kernels/lu_scene_layout.h"
 #include "methods/common/lightview.h"
 #include "methods/frame.h"
 #include "methods/methods.h"
@@ -40,6 +41,8 @@ void lu_media_rays_free(lu_media_rays *mr) {
     free(mr->view_table);
     free(mr->shadow);
     free(mr->bmap);
+    for (int m = 0; m < mr->medium_count && mr->majorants; m++) lu_majorant_destroy(&mr->majorants[m]);
+    free(mr->majorants);
     memset(mr, 0, sizeof *mr);
 }
 
@@ -67,6 +70,29 @@ void lu_media_ray_spans(const lu_media_rays *mr, lu_vec3 o, lu_vec3 d, float t_e
             sp[2 * m + 1] = 0.0f;
         }
     }
+}
+
+lu_result lu_media_rays_majorants(lu_media_rays *mr, const lu_frame *f, const lu_grid *dens, lu_error *err) {
+    const lu_scene *scene = f->scene;
+    if (!mr->majorants) {
+        mr->majorants = calloc(mr->medium_count ? (size_t)mr->medium_count : 1u, sizeof *mr->majorants);
+        if (!mr->majorants) return lu_fail(err, LU_ERR_NOMEM, "out of memory for the majorant grids");
+        mr->majorants_valid = false;
+    }
+    if (!lu_frame_stale(f, mr->majorants_valid, LU_CHANGE_MEDIA)) return LU_OK;
+    mr->majorants_valid = false;
+    lu_result r = LU_OK;
+    for (int m = 0; m < mr->medium_count && r == LU_OK; m++) {
+        lu_majorant_destroy(&mr->majorants[m]);
+        const lu_medium *med = &scene->media[m];
+        if (med->kind != LU_DENSITY_GRID) continue;
+        const lu_grid *g = dens && dens[m].data ? &dens[m] : &med->grid;
+        r = lu_majorant_build(g, LU_SCENE_MAJORANT_BLOCK, &mr->majorants[m], err);
+    }
+    if (r != LU_OK) return r;
+    mr->majorants_valid = true;
+    lu_frame_rebuilt(f, "view_march.occupancy");
+    return LU_OK;
 }
 
 /* ---- camera rays ---- */

@@ -15,6 +15,7 @@
 #include "kernels/lu_camera.h"
 #include "methods/common/lu_lightview.h"
 #include "kernels/lu_optics.h"
+#include "methods/common/majorant.h"
 
 /* Packed light view: origin + ortho, axis_u + extent_u, axis_v + extent_v,
  * axis_w + depth_far (16 floats, std430 vec4[4]). */
@@ -65,6 +66,10 @@ typedef struct lu_media_rays {
     int bmap_views_at, bmap_maps_at, bmap_view_count;
     bool bmap_valid;
     unsigned bmap_version;
+    /* majorant grids of the view march's empty-space skipping
+     * (lu_media_rays_majorants, product "view_march.occupancy"): media */
+    lu_majorant *majorants;      /* per medium; dmax NULL for constant media */
+    bool majorants_valid;
 } lu_media_rays;
 
 /* Floats per boundary-map texel: depth a < depth b of the light ray's segment
@@ -98,6 +103,12 @@ lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_frame *f, cons
  * lights); kept while neither changes, and per light while that light does not. */
 lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_frame *f, lu_k_camera cam, const lu_k_light *kl,
                                     int nl, float eps, lu_error *err);
+
+/* Per grid medium, the majorant grid (blocks of LU_SCENE_MAJORANT_BLOCK^3
+ * voxels) of the density the march samples: dens[m] when dens is given and
+ * dens[m].data is set (a method marching its own reconstruction of the
+ * grid), the scene's grid otherwise. Rebuilt when the frame's media changed. */
+lu_result lu_media_rays_majorants(lu_media_rays *mr, const lu_frame *f, const lu_grid *dens, lu_error *err);
 
 /* The first span of each medium along o + t d, t in [0, t_end]: sp[2m],
  * sp[2m+1] (empty: sp[2m+1] <= sp[2m]; unbounded media: [0, LU_K_FAR]).

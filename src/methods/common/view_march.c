@@ -19,7 +19,7 @@ struct lu_k_ctx {
 #include "methods/common/lu_view_march.h"
 
 void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, const lu_media_rays *mr, int steps, float eps,
-                            int jitter, int nl) {
+                            int jitter, int nl, float t_cut) {
     lu_aabb mb = lu_scene_media_bounds(scene);
     float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;
     f->width = scene->camera.width;
@@ -42,6 +42,15 @@ void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, con
     f->hits_version = mr->hits_version;
     f->vis_version = mr->vis_version;
     f->max_steps = steps;
+    f->t_cut = t_cut;
+    f->majorants = mr->majorants;
+}
+
+long lu_view_march_shadow_iterations(const lu_k_medium *k) {
+    /* The block walk, and per block entered its cell walk: every cell piece
+     * once, plus one restart piece and one loop entry per block. */
+    long blocks = k->max_pieces / LU_SCENE_MAJORANT_BLOCK + 4;
+    return 1 + k->max_pieces + 3 * blocks;
 }
 
 lu_k_rm_params lu_view_march_frame_params(const lu_view_march_frame *f) {
@@ -51,6 +60,6 @@ lu_k_rm_params lu_view_march_frame_params(const lu_view_march_frame *f) {
     P.eps = f->eps;
     P.jitter = f->jitter;
     P.map_res = f->map_res;
-    P.pad = 0;
+    P.t_cut = f->t_cut;
     return P;
 }

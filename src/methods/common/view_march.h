@@ -24,6 +24,7 @@ typedef struct lu_view_march_frame {
     lu_vec3 background;
     float step, eps;
     int jitter, map_res;
+    float t_cut;                     /* early termination bound (lu_view_march.h) */
     int medium_count, light_count;   /* light_count: non-environment lights */
     const float *hits;               /* width*height*LU_K_RM_HIT_FLOATS */
     const float *spans;              /* width*height*medium_count*2 */
@@ -36,11 +37,23 @@ typedef struct lu_view_march_frame {
     unsigned maps_version;           /* changes whenever views or shadow maps are rebuilt */
     unsigned hits_version;           /* ... hits and spans (lu_media_rays.hits_version) */
     unsigned vis_version;            /* ... surface_vis (lu_media_rays.vis_version) */
+    const lu_majorant *majorants;    /* per medium (lu_media_rays_majorants) */
     int max_steps;                   /* most march steps any camera ray takes (media diagonal / step) */
 } lu_view_march_frame;
 
 /* The frame of one view march over mr's inputs: step = media-box diagonal / steps. */
 void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, const lu_media_rays *mr, int steps, float eps,
-                            int jitter, int nl);
+                            int jitter, int nl, float t_cut);
+
+/* The t_cut parameter every view-march method takes (lu_param_desc fields:
+ * name, type, default, range, help). */
+#define LU_VIEW_MARCH_T_CUT_PARAM                                                                                     \
+    {"t_cut", LU_PARAM_FLOAT, 1e-3, 0, 1, NULL,                                                                       \
+     "early termination: the view march stops once the camera ray's transmittance is below this; the radiance "      \
+     "left out is at most t_cut times the largest radiance beyond (0: march to the end)"}
+
+/* Upper bound of the loop iterations one shadow ray through medium k takes
+ * in the view march (lu_k_optical_depth_blocks), for GPU segment sizes. */
+long lu_view_march_shadow_iterations(const lu_k_medium *k);
 
 #endif

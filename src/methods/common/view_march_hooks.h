@@ -25,5 +25,11 @@ static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k
 static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) {
     return c->f->spans[((size_t)pixel * c->nm + m) * 2 + end];
 }
+/* Without a frame's majorants (a caller building AFM maps alone) every
+ * block counts as dense: nothing is skipped. */
+static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz) {
+    if (c->km[m].constant) return c->km[m].density_scale;
+    return c->f && c->f->majorants ? lu_majorant_at(&c->f->majorants[m], bx, by, bz) : 1.0f;
+}
 
 #endif

@@ -167,7 +167,7 @@ static void march_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     P.eps = st->frame.eps;
     P.jitter = 0;
     P.map_res = st->kctx.G.map_res;
-    P.pad = 0;
+    P.t_cut = st->frame.t_cut;
     for (int64_t y = begin; y < end; y++)
         for (int x = 0; x < c->width; x++) {
             int px = (int)(y * c->width + x);
@@ -216,6 +216,8 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
     if (r == LU_OK) r = lu_media_rays_boundary_maps(&st->mr, frame, kl, st->nl, err);
     if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, st->nl, st->eps, err);
     if (r == LU_OK) r = update_density(st, frame, err);
+    /* The CPU marches the reconstruction st->dens: its majorants are of it. */
+    if (r == LU_OK) r = lu_media_rays_majorants(&st->mr, frame, st->dens, err);
     if (r != LU_OK) return r;
     density_scales(st, scene);
 
@@ -268,6 +270,7 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
     f->step = fmaxf(diag, 1e-6f) / (float)st->p[P_STEPS];
     f->eps = st->eps;
     f->jitter = 0;
+    f->t_cut = (float)st->p[P_T_CUT];
     f->width = c->width;
     f->height = c->height;
     f->medium_count = scene->medium_count;

@@ -30,6 +30,7 @@ uniform int u_count;
 uniform int u_want_error;
 uniform float u_step;
 uniform float u_eps;
+uniform float u_t_cut;
 uniform vec3 u_background;
 
 float lu_k_shadow_depth(LU_CTX_PARAM, int map, int i, int j) {
@@ -103,7 +104,7 @@ void main() {
         P.eps = u_eps;
         P.jitter = 0;
         P.map_res = G.map_res;
-        P.pad = 0;
+        P.t_cut = u_t_cut;
         vec3 d = lu_k_camera_dir(lu_scene_camera(), float(x) + 0.5, float(y) + 0.5);
         vec3 L = lu_k_gr_radiance(0, P, i, lu_scene_camera_position(), d);
         gr_out[3 * i] = L.x;

@@ -15,6 +15,7 @@ typedef struct lu_gradient_frame {
     lu_vec3 background;              /* lu_k_rm_params of the march */
     float step, eps;
     int jitter;
+    float t_cut;                     /* view march early termination (lu_view_march.h) */
     int width, height, medium_count, light_count;
     const lu_media_rays *mr;         /* hits, spans, normals, views, shadow maps, boundary maps */
     const float *surf;               /* 8 floats per medium: boundary materials (lu_k_gr_surf) */

@@ -9,6 +9,7 @@
 
 #include "methods/common/gpu_scene.h"
 #include "methods/common/media_ray.h"
+#include "methods/common/view_march.h"
 #include "methods/frame.h"
 #include "methods/gradient/gradient.h"
 #include "methods/gradient/gradient_fit.h"
@@ -47,6 +48,9 @@ static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k
 static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) {
     return c->mr->spans[((size_t)pixel * c->nm + m) * 2 + end];
 }
+static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz) {
+    return c->dens[m].data ? lu_majorant_at(&c->mr->majorants[m], bx, by, bz) : c->km[m].density_scale;
+}
 static inline lu_k_gr_params lu_k_gr_get(const struct lu_k_ctx *c) { return c->G; }
 static inline lu_vec3 lu_k_gr_field(const struct lu_k_ctx *c, int i) {
     const float *f = c->field + 3 * (size_t)i;
@@ -73,7 +77,7 @@ _Static_assert(LU_K_RM_MAX_MEDIA == 8, "lu_k_gr_inscatter takes dens[8]");
 
 /* ---- parameters: pervoxel's are the first P_PERVOXEL_COUNT ---- */
 enum {
-    P_STEPS, P_SHADOW_RES, P_GRID, P_DELTA1, P_NORMALIZE, P_PERVOXEL_COUNT,
+    P_STEPS, P_SHADOW_RES, P_GRID, P_DELTA1, P_NORMALIZE, P_T_CUT, P_PERVOXEL_COUNT,
     P_GAUSSIANS = P_PERVOXEL_COUNT, P_MAX_RADIUS, P_SEEDS, P_DELTA2, P_LEVELS, P_EPSILON, P_COUNT
 };
 

@@ -88,6 +88,7 @@ static lu_result bind_common(lu_gradient_gpu *g, const lu_scene *scene, const lu
     if (r != LU_OK) return r;
     lu_gpu_uniform_float(g->prog, "u_step", f->step);
     lu_gpu_uniform_float(g->prog, "u_eps", f->eps);
+    lu_gpu_uniform_float(g->prog, "u_t_cut", f->t_cut);
     lu_gpu_uniform_vec3(g->prog, "u_background", f->background.x, f->background.y, f->background.z);
     return LU_OK;
 }

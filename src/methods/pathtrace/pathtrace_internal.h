@@ -5,22 +5,17 @@
 
 #include <lucent/lucent.h>
 
-/* Blocks of `block`^3 voxels; block k along an axis covers index coordinates
- * [k block - 1, (k + 1) block - 1] (lu_tracking.h), and dmax holds the largest
- * grid value among the voxels whose trilinear support touches that region,
- * which bounds the trilinear field there. */
-typedef struct lu_pt_majorant {
-    int block;
-    int nx, ny, nz;
-    float *dmax;      /* nx*ny*nz, x fastest */
-} lu_pt_majorant;
+#include "methods/common/majorant.h"
 
-lu_result lu_pt_majorant_build(const lu_grid *g, int block, lu_pt_majorant *out, lu_error *err);
-void lu_pt_majorant_destroy(lu_pt_majorant *m);
+/* The shared majorant grid (methods/common/majorant.h) under its tracking names. */
+typedef lu_majorant lu_pt_majorant;
 
+static inline lu_result lu_pt_majorant_build(const lu_grid *g, int block, lu_pt_majorant *out, lu_error *err) {
+    return lu_majorant_build(g, block, out, err);
+}
+static inline void lu_pt_majorant_destroy(lu_pt_majorant *m) { lu_majorant_destroy(m); }
 static inline float lu_pt_majorant_at(const lu_pt_majorant *m, int bx, int by, int bz) {
-    if (bx < 0 || by < 0 || bz < 0 || bx >= m->nx || by >= m->ny || bz >= m->nz) return 0.0f;
-    return m->dmax[((size_t)bz * m->ny + by) * m->nx + bx];
+    return lu_majorant_at(m, bx, by, bz);
 }
 
 #endif

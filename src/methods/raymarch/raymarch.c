@@ -40,7 +40,7 @@ static inline float lu_k_rm_surface_vis(const struct lu_k_ctx *c, int pixel, int
 
 #include "methods/common/lu_view_march.h"
 
-enum { P_STEPS, P_JITTER, P_SHADOW_RES, P_COUNT };
+enum { P_STEPS, P_JITTER, P_SHADOW_RES, P_T_CUT, P_COUNT };
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_STEPS] = {"steps", LU_PARAM_INT, 256, 4, 16384, NULL,
@@ -49,11 +49,13 @@ static const lu_param_desc k_params[P_COUNT] = {
                   "shift each pixel's samples by a per-pixel hash within a step (noise instead of banding)"},
     [P_SHADOW_RES] = {"shadow_res", LU_PARAM_INT, 512, 16, 4096, NULL,
                       "shadow map resolution per light view (opaque objects only; media use exact optical depth)"},
+    [P_T_CUT] = LU_VIEW_MARCH_T_CUT_PARAM,
 };
 
 typedef struct rm_state {
     lu_backend backend;
     int steps, jitter, res;
+    float t_cut;
     lu_media_rays mr;          /* camera hits/spans, light views, shadow maps */
     lu_k_medium *km;
     lu_k_light *kl;
@@ -87,6 +89,7 @@ static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_back
     st->steps = (int)params[P_STEPS];
     st->jitter = (int)params[P_JITTER];
     st->res = (int)params[P_SHADOW_RES];
+    st->t_cut = (float)params[P_T_CUT];
     lu_result r = LU_OK;
     if (scene->medium_count > LU_K_RM_MAX_MEDIA)
         r = lu_fail(err, LU_ERR_LIMIT, "raymarch: %d media (at most %d)", scene->medium_count, LU_K_RM_MAX_MEDIA);
@@ -139,10 +142,11 @@ static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu
     lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, nl, err);
     if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, nl, st->eps, err);
+    if (r == LU_OK) r = lu_media_rays_majorants(&st->mr, frame, NULL, err);
     if (r != LU_OK) return r;
 
     lu_view_march_frame *f = &st->frame;
-    lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl);
+    lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl, st->t_cut);
     if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, f, out, err);
     st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, nl, f, st->mr.views};
     lu_parallel_for(c->height, 1, render_rows, st, NULL);

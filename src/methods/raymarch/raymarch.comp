@@ -19,6 +19,7 @@ layout(std430, binding = LU_RM_BINDING_NEXT + 2) readonly buffer RmSurfaceVis { 
 uniform float u_step;
 uniform float u_eps;
 uniform int u_jitter;
+uniform float u_t_cut;
 uniform vec3 u_background;
 uniform int u_seg_begin;
 uniform int u_seg_end;
@@ -40,7 +41,7 @@ void main() {
     P.eps = u_eps;
     P.jitter = u_jitter;
     P.map_res = u_map_res;
-    P.pad = 0;
+    P.t_cut = u_t_cut;
     int px = y * w + x;
     vec3 d = lu_k_camera_dir(lu_scene_camera(), float(x) + 0.5, float(y) + 0.5);
     vec3 o = lu_scene_camera_position();

@@ -81,20 +81,24 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
     lu_gpu_uniform_float(g->prog, "u_step", f->step);
     lu_gpu_uniform_float(g->prog, "u_eps", f->eps);
     lu_gpu_uniform_int(g->prog, "u_jitter", f->jitter);
+    lu_gpu_uniform_float(g->prog, "u_t_cut", f->t_cut);
     lu_gpu_uniform_vec3(g->prog, "u_background", f->background.x, f->background.y, f->background.z);
     /* Steps per dispatch: an upper bound of the loop iterations one step runs
      * (llvmpipe counts each pass through a loop body plus one per loop
-     * entered): the step itself, the media loop, the light loop, and per
-     * light the 2x2 PCF taps, two more media loops, a 3-axis box clip per
-     * medium and each shadow ray's DDA pieces. Kept under llvmpipe's 65535
+     * entered): the step itself, the media loop, the block look-up (a media
+     * loop with a 3-axis loop each), the light loop, and per light the 2x2
+     * PCF taps, two more media loops, a 3-axis box clip per medium and each
+     * shadow ray's block and cell walks. Kept under llvmpipe's 65535
      * iterations per invocation (lu_k_rm_segment) with one step's worth left
      * for the finishing surface term (tests/test_gpu.c measures the cap). */
     long nm = f->medium_count;
-    long per_step = 3 + nm;
+    long per_step = 4 + 6 * nm;
     for (int l = 0; l < f->light_count; l++) {
         per_step += 12 + 6 * nm;
-        for (int m = 0; m < scene->medium_count; m++)
-            per_step += 1 + (long)lu_medium_to_kernel(&scene->media[m]).max_pieces;
+        for (int m = 0; m < scene->medium_count; m++) {
+            lu_k_medium k = lu_medium_to_kernel(&scene->media[m]);
+            per_step += lu_view_march_shadow_iterations(&k);
+        }
     }
     int seg = (int)(LU_RM_LOOP_BUDGET / per_step) - 1;
     if (seg < 1) seg = 1;
