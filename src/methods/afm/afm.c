@@ -299,8 +299,8 @@ static const lu_param_desc k_params[P_COUNT] = {
                    "transmittance samples K_j per texel along K_in..K_out, projected onto the coefficients"},
     [P_MAP_RES] = {"map_res", LU_PARAM_INT, 0, 0, 4096, NULL,
                    "attenuation map resolution per light view (0: 256 on the CPU, 512 on the GPU)"},
-    [P_STEPS] = {"steps", LU_PARAM_INT, 500, 4, 16384, NULL,
-                 "view-ray march steps across the diagonal of the media's box (the seed uses 500)"},
+    [P_STEPS] = {"steps", LU_PARAM_INT, 250, 4, 16384, NULL,
+                 "view-ray march steps across the diagonal of the media's box (the seed uses 500: afm.preset=paper)"},
     [P_JITTER] = {"jitter", LU_PARAM_BOOL, 0, 0, 1, NULL,
                   "shift each pixel's samples by a per-pixel hash within a step (noise instead of banding)"},
     [P_SHADOW_RES] = {"shadow_res", LU_PARAM_INT, 512, 16, 4096, NULL,
@@ -482,7 +482,9 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     return LU_OK;
 }
 
-/* Delalandre et al.'s set-up (Fig. 1: 1280x720 on a GTX 280). */
+/* Delalandre et al.'s set-up (Fig. 1: 1280x720 on a GTX 280). The defaults
+ * above are the cheapest swept settings that keep every volume scene's error
+ * at 640x360 within the gate (docs/performance.md, "Error-budgeted defaults"). */
 static const lu_preset k_presets[] = {
     {"paper", "map_res=1024 coefs=16 steps=500", "the seed paper's settings: a 1024^2 map, 16 coefficients, 500 steps"},
 };
