@@ -235,7 +235,8 @@ static void run_sequence(const char *scene_file, const char *method, lu_backend 
         }
         /* New geometry makes the renderer prepare again (method.c). */
         uint64_t prepares = lu_renderer_rebuilds(r, "renderer.prepare");
-        uint64_t want_prepares = s != S_FIRST && (changes & LU_CHANGE_GEOMETRY) ? 1u : 0u;
+        const lu_method *lm = lu_method_find(method);
+        uint64_t want_prepares = s != S_FIRST && (changes & (LU_CHANGE_GEOMETRY | lm->prepare_deps)) ? 1u : 0u;
         CHECK_MSG(prepares - prepares_before == want_prepares, "%s %s on %s, step \"%s\": prepared %llu times, expected %llu",
                   method, lu_backend_name(backend), scene_file, k_step_names[s],
                   (unsigned long long)(prepares - prepares_before), (unsigned long long)want_prepares);
@@ -267,6 +268,9 @@ static void test_view_march_methods_cpu(void) {
      * a point light (six views) and a directional light (one) */
     run_sequence("layered_cube.json", "afm", LU_BACKEND_CPU, k_cheap);
     run_sequence("layered_cube.json", "raymarch", LU_BACKEND_CPU, k_cheap);
+    /* the truths read the media at prepare: a media change prepares them again */
+    run_sequence("smoke_box.json", "reference", LU_BACKEND_CPU, "reference.tolerance=0.05 reference.max_depth=2");
+    run_sequence("smoke_box.json", "pathtrace", LU_BACKEND_CPU, "pathtrace.spp=1 pathtrace.max_depth=2");
 }
 
 static void test_view_march_methods_gpu(void) {

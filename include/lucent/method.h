@@ -92,6 +92,10 @@ typedef struct lu_method {
     int param_count;
     const lu_preset *presets;           /* NULL or preset_count entries */
     int preset_count;
+    /* lu_change bits whose change makes the renderer prepare again (new
+     * geometry always does): for methods that read those inputs only in
+     * prepare instead of keeping products of them. */
+    unsigned prepare_deps;
     /* params: resolved values in descriptor order (choices as indices). */
     lu_result (*prepare)(const lu_scene *scene, const double *params, lu_backend backend, void **state,
                          lu_error *err);

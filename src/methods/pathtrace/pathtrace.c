@@ -1345,6 +1345,8 @@ const lu_method lu_method_pathtrace = {
     .backends = LU_BACKEND_CPU,
     .params = k_params,
     .param_count = P_COUNT,
+    /* media coefficients and densities are read at prepare (majorants, sigma_t) */
+    .prepare_deps = LU_CHANGE_MEDIA,
     .prepare = pt_prepare,
     .render = pt_render,
     .render_progressive = pt_render_impl,

@@ -644,6 +644,8 @@ const lu_method lu_method_reference = {
     .backends = LU_BACKEND_CPU,
     .params = k_params,
     .param_count = P_COUNT,
+    /* media coefficients and densities are read at prepare (majorants, sigma_t) */
+    .prepare_deps = LU_CHANGE_MEDIA,
     .prepare = ref_prepare,
     .render = ref_render,
     .destroy = ref_destroy,
