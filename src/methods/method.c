@@ -160,6 +160,16 @@ lu_result lu_method_resolve_params(const lu_method *m, const lu_kvlist *settings
     return LU_OK;
 }
 
+/* Runs the method's prepare into r->state and times it (state NULL on failure). */
+static lu_result prepare_state(lu_renderer *r, const lu_scene *scene, lu_error *err) {
+    r->state = NULL;
+    double t0 = lu_time_seconds();
+    lu_result e = r->method->prepare(scene, r->params, r->backend, &r->state, err);
+    r->prepare_ms = 1e3 * (lu_time_seconds() - t0);
+    if (e != LU_OK) r->state = NULL;
+    return e;
+}
+
 lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu_kvlist *settings, lu_backend backend,
                              lu_renderer **out, lu_error *err) {
     *out = NULL;
@@ -185,11 +195,7 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
     rd->backend = backend;
     r = lu_method_resolve_params(m, settings, rd->params, err);
     if (r == LU_OK) r = lu_frame_stage_create(&rd->stage, err);
-    if (r == LU_OK) {
-        double t0 = lu_time_seconds();
-        r = m->prepare(scene, rd->params, backend, &rd->state, err);
-        rd->prepare_ms = 1e3 * (lu_time_seconds() - t0);
-    }
+    if (r == LU_OK) r = prepare_state(rd, scene, err);
     /* The scene prepare saw: a first frame with other geometry prepares again. */
     if (r == LU_OK) r = lu_frame_stage_end(rd->stage, scene, true, err);
     if (r != LU_OK && rd->state) m->destroy(rd->state);
@@ -219,12 +225,8 @@ lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *ou
          * profiles and boundary tables are built at prepare: new geometry is
          * a new scene for them, so prepare again. */
         r->method->destroy(r->state);
-        r->state = NULL;
-        double t1 = lu_time_seconds();
-        lu_result e = r->method->prepare(scene, r->params, r->backend, &r->state, err);
-        r->prepare_ms = 1e3 * (lu_time_seconds() - t1);
+        lu_result e = prepare_state(r, scene, err);
         if (e != LU_OK) {
-            r->state = NULL;
             r->frames = 0;
             return e;
         }
