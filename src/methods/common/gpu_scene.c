@@ -62,7 +62,12 @@ static void put4(float *dst, lu_vec3 v, float w) {
     dst[3] = w;
 }
 
-/* Packs the records (layout in kernels/lu_scene_gpu.glsl) and uploads them. */
+/* The packer side of lu_scene_layout.h's record tables (p: the record). */
+#define PUT_XYZ(i, f) p[4 * (i)] = k.f.x, p[4 * (i) + 1] = k.f.y, p[4 * (i) + 2] = k.f.z;
+#define PUT_WF(i, f) p[4 * (i) + 3] = k.f;
+#define PUT_WI(i, f) p[4 * (i) + 3] = (float)k.f;
+
+/* Packs the records (lu_scene_layout.h) and uploads them. */
 static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_error *err) {
     const lu_camera *c = &scene->camera;
     lu_k_camera cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
@@ -82,9 +87,8 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
     int light_count = lu_scene_kernel_lights(scene, kl);
     for (int l = 0; l < light_count; l++) {
         float *p = lights + (size_t)l * LU_SCENE_LIGHT_VEC4 * 4;
-        put4(p, kl[l].position, (float)kl[l].type);
-        put4(p + 4, kl[l].direction, kl[l].cos_inner);
-        put4(p + 8, kl[l].intensity, kl[l].cos_outer);
+        const lu_k_light k = kl[l];
+        LU_SCENE_LIGHT_RECORD(PUT_XYZ, PUT_WF, PUT_WI)
     }
     size_t at = 0;
     for (int m = 0; m < gs->medium_count; m++) {
@@ -99,17 +103,9 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
         at += n;
     }
     for (int m = 0; m < scene->medium_count; m++) {
-        lu_k_medium k = lu_medium_to_kernel(&scene->media[m]);
+        const lu_k_medium k = lu_medium_to_kernel(&scene->media[m]);
         float *p = media + (size_t)m * LU_SCENE_MEDIUM_VEC4 * 4;
-        put4(p, k.w2i_x, k.w2i_t.x);
-        put4(p + 4, k.w2i_y, k.w2i_t.y);
-        put4(p + 8, k.w2i_z, k.w2i_t.z);
-        put4(p + 12, k.support_lo, (float)k.max_pieces);
-        put4(p + 16, k.support_hi, k.density_scale);
-        put4(p + 20, k.sigma_a, k.g);
-        put4(p + 24, k.sigma_s, (float)k.constant);
-        put4(p + 28, k.bounds_lo, (float)k.bounded);
-        put4(p + 32, k.bounds_hi, k.eta);
+        LU_SCENE_MEDIUM_RECORD(PUT_XYZ, PUT_WF, PUT_WI)
     }
     float header[LU_SCENE_HEADER_VEC4 * 4];
     put4(header, c->position, (float)c->width);
