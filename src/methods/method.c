@@ -219,7 +219,8 @@ lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *ou
     }
     double t0 = lu_time_seconds();
     lu_frame frame;
-    lu_frame_stage_begin(r->stage, scene, &frame);
+    lu_result b = lu_frame_stage_begin(r->stage, scene, &frame, err);
+    if (b != LU_OK) return b;
     if ((frame.changed & (LU_CHANGE_GEOMETRY | r->method->prepare_deps)) || !r->state) {
         /* Objects are baked to world space and the methods' accelerations,
          * profiles and boundary tables are built at prepare: new geometry is

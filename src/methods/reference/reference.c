@@ -626,7 +626,7 @@ static lu_result ref_render(void *state, const lu_frame *frame, lu_image *out, l
     st->out = out;
     st->overflow = false;
     const lu_camera *c = &scene->camera;
-    st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
+    st->cam = frame->rec->cam;
     free(st->klights);
     st->klights = calloc((size_t)(scene->light_count ? scene->light_count : 1), sizeof *st->klights);
     if (!st->klights) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
