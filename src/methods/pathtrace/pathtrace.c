@@ -80,7 +80,7 @@ enum { TR_RATIO = 0, TR_EXACT };
 
 enum { SPECTRAL_HERO = 0, SPECTRAL_TRACKING };
 
-enum { BOUNDARY_AUTO = 0, BOUNDARY_STRAIGHT, BOUNDARY_REFRACT };
+enum { BOUNDARY_AUTO = 0, BOUNDARY_STRAIGHT, BOUNDARY_REFRACT, BOUNDARY_DIFFUSE };
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_SPP] = {"spp", LU_PARAM_INT, 16, 1, 1 << 20, NULL, "samples (passes) per pixel"},
@@ -90,9 +90,10 @@ static const lu_param_desc k_params[P_COUNT] = {
     [P_RR_DEPTH] = {"rr_depth", LU_PARAM_INT, 3, 0, 1 << 20, NULL,
                     "scattering vertices before Russian roulette starts"},
     [P_SEED] = {"seed", LU_PARAM_INT, 1, 0, 2147483647, NULL, "random seed (one PCG stream per pixel and sample)"},
-    [P_BOUNDARY] = {"boundary", LU_PARAM_CHOICE, 0, 0, 2, "auto|straight|refract",
+    [P_BOUNDARY] = {"boundary", LU_PARAM_CHOICE, 0, 0, 3, "auto|straight|refract|diffuse",
                     "medium boundaries: straight (the reference's model), refract (smooth dielectric), auto "
-                    "(translucent objects refract, media boundaries are straight)"},
+                    "(translucent objects refract, media boundaries are straight), diffuse (Lambertian "
+                    "transmission both ways, no Fresnel: production random walks)"},
     [P_BLOCK] = {"majorant_block", LU_PARAM_INT, 8, 1, 256, NULL, "voxels per majorant block side"},
     [P_JITTER] = {"jitter", LU_PARAM_BOOL, 1, 0, 1, NULL,
                   "random position in the pixel (box filter); off = through the pixel centre like reference spp=1"},
@@ -121,6 +122,7 @@ typedef struct pt_medium {
     float cdens; /* constant density */
     int bit;     /* bounded: its bit in the inside mask; -1 unbounded */
     bool refract;
+    bool diffuse; /* Lambertian-transmitting boundary (boundary=diffuse) */
     float eta;
     float lambda;       /* a typical extinction (mean channel), for beam distance sampling */
     lu_pt_majorant maj; /* grid media */
@@ -176,6 +178,7 @@ struct pt_state {
     float eps;
     bool have_refract;
     uint64_t refract_bits; /* inside-mask bits of refracting media */
+    uint64_t sealed_bits;  /* refracting or diffuse: no shadow ray crosses their boundary */
     int delta_light_count;
     lu_vec3 refract_center;
     float refract_radius;
@@ -471,7 +474,7 @@ static lu_vec3 transmit(const pt_state *st, lu_vec3 x, lu_vec3 w, float dist, ui
         const pt_surf *sf = &st->surf_info[hit.mesh_id];
         if (sf->kind == SURF_OPAQUE) return lu_v3s(0.0f);
         const pt_medium *pm = &st->media[sf->index];
-        if (pm->refract) return lu_v3s(0.0f);
+        if (pm->refract || pm->diffuse) return lu_v3s(0.0f);
         float c = lu_v3_dot(hit.ng, w);
         tr = lu_v3_scale(tr, lu_k_fresnel_transmittance(c, pm->eta));
         mask = mask_set(mask, pm->bit, c < 0.0f);
@@ -487,6 +490,7 @@ static lu_vec3 transmit(const pt_state *st, lu_vec3 x, lu_vec3 w, float dist, ui
 
 typedef struct pt_vertex {
     bool surface;
+    bool lambert_t; /* surface: a diffuse interface, Lambertian (albedo 1) about n, the side left towards */
     lu_vec3 x; /* surfaces: offset off the surface on wo's side */
     lu_vec3 d; /* medium: direction the path arrived in */
     float g;
@@ -503,6 +507,11 @@ static lu_vec3 vertex_eval(const pt_vertex *v, lu_vec3 wl, float *pdf) {
         *pdf = p;
         return lu_v3s(p);
     }
+    if (v->lambert_t) {
+        float c = fmaxf(lu_v3_dot(v->n, wl), 0.0f) * LU_K_INV_PI;
+        *pdf = c;
+        return lu_v3s(c);
+    }
     const lu_material *m = v->mat;
     *pdf = lu_k_blinn_phong_pdf(m->albedo, m->specular, m->shininess, v->n, v->wo, wl);
     return lu_k_blinn_phong(m->albedo, m->specular, m->shininess, v->n, v->wo, wl);
@@ -516,7 +525,7 @@ static lu_vec3 nee(const pt_state *st, const pt_vertex *v, bool mis, lu_k_rng *r
     int env_i = 0;
     /* A light outside a refracting medium the vertex is in cannot be
      * connected to (the shadow ray would meet the dielectric): skip the ray. */
-    uint64_t enclosing = v->mask & st->refract_bits;
+    uint64_t enclosing = v->mask & st->sealed_bits;
     for (int l = 0; l < s->light_count; l++) {
         const lu_light *light = &s->lights[l];
         if (enclosing & ~st->light_mask[l]) {
@@ -636,7 +645,7 @@ static lu_vec3 segment_nee(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end
         lambda = fmaxf(lambda, pm->lambda);
     }
     if (!(b0 > a0)) return sum;
-    uint64_t enclosing = mask & st->refract_bits;
+    uint64_t enclosing = mask & st->sealed_bits;
     for (int l = 0; l < sc->light_count; l++) {
         lu_light_type type = sc->lights[l].type;
         if (type != LU_LIGHT_POINT && type != LU_LIGHT_SPOT) continue;
@@ -895,6 +904,7 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams, 
                 const pt_surf *sf = &st->surf_info[hit.mesh_id];
                 if (sf->kind == SURF_OPAQUE) break;
                 const pt_medium *pm = &st->media[sf->index];
+                if (pm->diffuse) break; /* a diffuse interface ends the specular chain */
                 lu_vec3 p = lu_v3_madd(o, d, hit.t);
                 if (!pm->refract) {
                     float c = lu_v3_dot(hit.ng, d);
@@ -1002,6 +1012,39 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                 const lu_medium *med = &s->media[sf->index];
                 float c = lu_v3_dot(hit.ng, d);
                 bool entering = c < 0.0f;
+                if (pm->diffuse) {
+                    /* Chiang, Kutz and Burley 2016: the interface transmits
+                     * every ray, in a cosine-distributed direction about the
+                     * normal of the side it leaves towards (a white Lambertian
+                     * transmitter, f cos / pdf = 1, no Fresnel); a walk ends
+                     * at its first boundary hit. Not a scattering vertex for
+                     * max_depth (as dielectric events), but it is diffuse, so
+                     * it takes next-event estimation and MIS. */
+                    if (++specular_events > PT_MAX_SPECULAR) break;
+                    lu_vec3 n = entering ? lu_v3_neg(hit.ng) : hit.ng;
+                    mask = mask_set(mask, pm->bit, entering);
+                    pt_vertex v = {0};
+                    v.surface = true;
+                    v.lambert_t = true;
+                    v.x = lu_v3_madd(p, n, st->eps);
+                    v.n = n;
+                    v.wo = lu_v3_neg(d);
+                    v.mask = mask;
+                    L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), nee(st, &v, true, rng)));
+                    if (beams_on && depth + 1 <= st->max_depth)
+                        L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r),
+                                                   lu_v3_add(connect_beams(st, &v, beams, nbeams, rng),
+                                                             connect_vertex_beams(st, &v, rng))));
+                    float u1 = rnd(rng), u2 = rnd(rng);
+                    d = lu_k_sample_cosine(n, u1, u2);
+                    prev_pdf = fmaxf(lu_v3_dot(n, d), 0.0f) * LU_K_INV_PI;
+                    if (!(prev_pdf > 0.0f)) break;
+                    prev_delta = false;
+                    primary = false;
+                    scattered = true;
+                    o = v.x;
+                    continue;
+                }
                 if (!pm->refract) {
                     /* The seed model: light passes straight, weighted by F_t
                      * (not on the camera ray), and the coat reflects direct
@@ -1210,6 +1253,8 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
         pm->bit = bits++;
         pm->refract =
             st->boundary_mode == BOUNDARY_REFRACT || (st->boundary_mode == BOUNDARY_AUTO && med->from_object >= 0);
+        pm->diffuse = st->boundary_mode == BOUNDARY_DIFFUSE;
+        if (pm->diffuse) st->sealed_bits = mask_set(st->sealed_bits, pm->bit, true);
         uint32_t id;
         r = lu_accel_add_mesh(st->surf, &med->boundary, &id, err);
         if (r == LU_OK) {
@@ -1222,6 +1267,7 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
         if (pm->refract) {
             st->have_refract = true;
             st->refract_bits = mask_set(st->refract_bits, pm->bit, true);
+            st->sealed_bits = mask_set(st->sealed_bits, pm->bit, true);
             lu_aabb mb = lu_mesh_bounds(&med->boundary);
             lu_aabb_grow(&rbox, mb.lo);
             lu_aabb_grow(&rbox, mb.hi);
