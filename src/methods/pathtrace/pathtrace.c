@@ -378,6 +378,10 @@ typedef struct pt_flight {
     float t;
 } pt_flight;
 
+static int earliest_walker(const pt_walker *wk, int n);
+static bool flight_event(const pt_state *st, pt_walker *w, lu_vec3 *beta, lu_vec3 *r, int hero, lu_k_rng *rng,
+                         pt_flight *f);
+
 /* Free flight over (0, t_end) through every medium active under `mask`.
  * hero >= 0: hero-channel sampling (r tracks the spectral MIS ratios);
  * hero < 0: spectral tracking. */
@@ -393,40 +397,103 @@ static pt_flight free_flight(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_e
         if (walker_begin(st, m, o, d, a, b, rng, &wk[n])) n++;
     }
     for (int guard = 0; guard < 100000000; guard++) {
-        int k = -1;
-        float tk = INFINITY;
-        for (int i = 0; i < n; i++)
-            if (wk[i].t < wk[i].t1 && wk[i].t < tk) {
-                tk = wk[i].t;
-                k = i;
-            }
+        int k = earliest_walker(wk, n);
         if (k < 0) return f;
-        const pt_medium *pm = &st->media[wk[k].m];
-        const lu_medium *med = &st->scene->media[wk[k].m];
-        float dens, mu;
-        if (pm->constant) {
-            dens = pm->cdens;
-            mu = pm->sigma_max * dens;
-        } else {
-            dens = lu_grid_sample(&med->grid, lu_v3_madd(wk[k].oi, wk[k].di, tk));
-            mu = pm->sigma_max * wk[k].w.dmax;
-        }
-        lu_vec3 sa = lu_v3_scale(med->sigma_a, dens), ss = lu_v3_scale(med->sigma_s, dens);
-        int ev = hero >= 0 ? lu_k_hero_event(beta, r, sa, ss, mu, hero, rnd(rng))
-                           : lu_k_spectral_event(beta, sa, ss, mu, rnd(rng));
-        if (ev == LU_K_EVENT_ABSORB) {
-            f.event = LU_K_EVENT_ABSORB;
-            return f;
-        }
-        if (ev == LU_K_EVENT_SCATTER) {
-            f.event = LU_K_EVENT_SCATTER;
-            f.medium = wk[k].m;
-            f.t = tk;
-            return f;
-        }
-        walker_advance(st, &wk[k], rng);
+        if (flight_event(st, &wk[k], beta, r, hero, rng, &f)) return f;
     }
     return f;
+}
+
+/* The walker whose tentative collision comes first, or -1 when all are done. */
+static int earliest_walker(const pt_walker *wk, int n) {
+    int k = -1;
+    float tk = INFINITY;
+    for (int i = 0; i < n; i++)
+        if (wk[i].t < wk[i].t1 && wk[i].t < tk) {
+            tk = wk[i].t;
+            k = i;
+        }
+    return k;
+}
+
+/* The event at walker w's tentative collision: true when the flight ends
+ * there (*f set: a scattering or nothing left to carry), false after a null
+ * collision (the walker has moved on). */
+static bool flight_event(const pt_state *st, pt_walker *w, lu_vec3 *beta, lu_vec3 *r, int hero, lu_k_rng *rng,
+                         pt_flight *f) {
+    const pt_medium *pm = &st->media[w->m];
+    const lu_medium *med = &st->scene->media[w->m];
+    float tk = w->t;
+    float dens, mu;
+    if (pm->constant) {
+        dens = pm->cdens;
+        mu = pm->sigma_max * dens;
+    } else {
+        dens = lu_grid_sample(&med->grid, lu_v3_madd(w->oi, w->di, tk));
+        mu = pm->sigma_max * w->w.dmax;
+    }
+    lu_vec3 sa = lu_v3_scale(med->sigma_a, dens), ss = lu_v3_scale(med->sigma_s, dens);
+    int ev = hero >= 0 ? lu_k_hero_event(beta, r, sa, ss, mu, hero, rnd(rng))
+                       : lu_k_spectral_event(beta, sa, ss, mu, rnd(rng));
+    if (ev == LU_K_EVENT_ABSORB) {
+        f->event = LU_K_EVENT_ABSORB;
+        return true;
+    }
+    if (ev == LU_K_EVENT_SCATTER) {
+        f->event = LU_K_EVENT_SCATTER;
+        f->medium = w->m;
+        f->t = tk;
+        return true;
+    }
+    walker_advance(st, w, rng);
+    return false;
+}
+
+/* The ray cast to the next surface fused with free_flight: the surface is
+ * looked for only over each stretch between tentative collisions (a walk's
+ * steps are short, and a short ray query is cheap), so a walk never casts to
+ * infinity. Draws the same random numbers and returns the same flight and hit
+ * as lu_accel_closest to infinity followed by free_flight, provided every
+ * medium the ray meets has constant density and contains the origin (then
+ * free_flight starts the same walkers whatever t_end is); returns false,
+ * having drawn nothing, when that does not hold. */
+static bool free_flight_to_surface(const pt_state *st, lu_vec3 o, lu_vec3 d, uint64_t mask, lu_vec3 *beta, lu_vec3 *r,
+                                   int hero, lu_k_rng *rng, pt_flight *f, lu_hit *hit, bool *has) {
+    int ms[PT_MAX_MEDIA];
+    float bs[PT_MAX_MEDIA];
+    int nm = 0;
+    for (int m = 0; m < st->medium_count; m++) {
+        const pt_medium *pm = &st->media[m];
+        float a, b;
+        if (!medium_active(pm, mask) || !medium_span(pm, o, d, LU_K_FAR, &a, &b)) continue;
+        if (!pm->constant || a > 0.0f) return false;
+        ms[nm] = m;
+        bs[nm++] = b;
+    }
+    pt_walker wk[PT_MAX_MEDIA];
+    int n = 0;
+    for (int i = 0; i < nm; i++)
+        if (walker_begin(st, ms[i], o, d, 0.0f, bs[i], rng, &wk[n])) n++;
+    f->event = -1;
+    f->medium = -1;
+    f->t = LU_K_FAR;
+    *has = false;
+    float t_lo = 0.0f;
+    for (int guard = 0; guard < 100000000; guard++) {
+        int k = earliest_walker(wk, n);
+        float tq = k < 0 ? LU_K_FAR : wk[k].t;
+        /* [0, t_lo] is known to be free of surfaces (closed intervals). */
+        if (st->surf && tq > t_lo && lu_accel_closest(st->surf, o, d, t_lo, tq, hit)) {
+            *has = true;
+            f->event = -1;
+            f->t = hit->t;
+            return true;
+        }
+        if (k < 0) return true;
+        t_lo = tq;
+        if (flight_event(st, &wk[k], beta, r, hero, rng, f)) return true;
+    }
+    return true;
 }
 
 /* Transmittance over (0, t_end) of the media active under `mask` (no
@@ -676,6 +743,21 @@ static lu_vec3 segment_nee(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end
         sum = lu_v3_add(sum, lu_v3_scale(c, 1.0f / pdf));
     }
     return sum;
+}
+
+/* Whether segment_nee on a ray under `mask` at this depth has nothing to do
+ * (off, or every point and spot light lies outside a sealed medium the ray
+ * is in): it would then draw no random numbers and return zero. */
+static bool segment_nee_idle(const pt_state *st, uint64_t mask, int depth) {
+    if (!(st->equiangular && st->have_point_lights && depth + 1 <= st->max_depth)) return true;
+    uint64_t enclosing = mask & st->sealed_bits;
+    if (!enclosing) return false;
+    const lu_scene *sc = st->scene;
+    for (int l = 0; l < sc->light_count; l++) {
+        lu_light_type type = sc->lights[l].type;
+        if ((type == LU_LIGHT_POINT || type == LU_LIGHT_SPOT) && !(enclosing & ~st->light_mask[l])) return false;
+    }
+    return true;
 }
 
 /* Contribution of one beam to vertex v through a point y on it. */
@@ -962,11 +1044,18 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
 
     for (int guard = 0; guard < (1 << 24); guard++) {
         lu_hit hit;
-        bool has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, LU_K_FAR, &hit);
-        float t_end = has ? hit.t : LU_K_FAR;
-        if (st->equiangular && st->have_point_lights && depth + 1 <= st->max_depth)
-            L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), segment_nee(st, o, d, t_end, mask, rng)));
-        pt_flight fl = free_flight(st, o, d, t_end, mask, &beta, &r, hero, rng);
+        bool has;
+        pt_flight fl;
+        /* segment_nee needs t_end first unless it has nothing to do here;
+         * then the ray cast can be fused with the free flight. */
+        if (!segment_nee_idle(st, mask, depth) ||
+            !free_flight_to_surface(st, o, d, mask, &beta, &r, hero, rng, &fl, &hit, &has)) {
+            has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, LU_K_FAR, &hit);
+            float t_end = has ? hit.t : LU_K_FAR;
+            if (!segment_nee_idle(st, mask, depth))
+                L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), segment_nee(st, o, d, t_end, mask, rng)));
+            fl = free_flight(st, o, d, t_end, mask, &beta, &r, hero, rng);
+        }
         if (fl.event == LU_K_EVENT_ABSORB || lu_v3_maxc(beta) <= 0.0f) break;
 
         if (fl.event == LU_K_EVENT_SCATTER) {
