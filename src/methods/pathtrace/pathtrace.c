@@ -38,6 +38,7 @@
 #include <lucent/lucent.h>
 
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -46,6 +47,22 @@
 #include "methods/pathtrace/pathtrace_internal.h"
 
 typedef struct pt_state pt_state;
+
+/* Walk counters (pathtrace.stats): one block per thread, summed at the end.
+ * Counting never draws random numbers, so it does not change an image. */
+typedef struct pt_stats {
+    uint64_t paths, segments;       /* camera samples; ray segments walked (one surface query each) */
+    uint64_t vertices, sealed_vertices; /* volume scattering vertices; of those inside a sealed medium */
+    uint64_t entries, inside_hits;  /* boundary crossings into a sealed medium; boundary hits from inside one */
+    uint64_t reflected, tir;        /* inside hits sent back in by Fresnel reflection; of those, total */
+    uint64_t exits, capped;         /* inside hits leaving; paths cut by the interface-event cap */
+    uint64_t beam_vertices;         /* vertices connected to light beams */
+    uint64_t pad[5];                /* one cache line apart per thread */
+} pt_stats;
+#define PT_COUNT(cs, field) \
+    do {                    \
+        if (cs) (cs)->field++; \
+    } while (0)
 
 /* ---- kernel context: how the shared kernels read media on the CPU ---- */
 struct lu_k_ctx {
@@ -73,6 +90,7 @@ enum {
     P_SPECTRAL,
     P_EQUIANGULAR,
     P_TRANSMITTANCE,
+    P_STATS,
     P_COUNT
 };
 
@@ -107,6 +125,8 @@ static const lu_param_desc k_params[P_COUNT] = {
     [P_TRANSMITTANCE] = {"transmittance", LU_PARAM_CHOICE, 0, 0, 1, "ratio|exact",
                          "shadow-ray transmittance in grids: ratio tracking (unbiased estimate) or exact cell-wise "
                          "optical depth (lu_march.h)"},
+    [P_STATS] = {"stats", LU_PARAM_BOOL, 0, 0, 1, NULL,
+                 "print walk counters on stderr after a render (vertices, boundary hits, internal reflections)"},
 };
 
 #define PT_MAX_BOUNDED 64 /* bounded media: one bit each in a path's inside mask */
@@ -165,6 +185,8 @@ struct pt_state {
     int spectral;
     bool equiangular;
     int transmittance;
+    bool stats;
+    pt_stats *stats_buf; /* per thread, when stats */
     uint32_t seed;
     int boundary_mode;
     float block;
@@ -1026,7 +1048,8 @@ static lu_vec3 spectral_weight(lu_vec3 beta, lu_vec3 r) { return lu_v3_scale(bet
 
 /* hero: the channel whose coefficients choose free-flight events (spectral
  * MIS), or -1 for spectral tracking. */
-static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt_beam *beams, lu_k_rng *rng) {
+static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt_beam *beams, pt_stats *cs,
+                          lu_k_rng *rng) {
     const lu_scene *s = st->scene;
     lu_vec3 L = lu_v3s(0.0f), beta = lu_v3s(1.0f);
     lu_vec3 r = lu_v3s(1.0f); /* spectral MIS: p_c / p_hero of the free-flight decisions so far */
@@ -1042,7 +1065,9 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
     bool beams_on = st->have_refract && st->have_delta_lights && st->max_depth >= 2;
     if (beams_on && st->light_paths > 0) nbeams = trace_light_paths(st, rng, beams, st->beam_cap);
 
+    PT_COUNT(cs, paths);
     for (int guard = 0; guard < (1 << 24); guard++) {
+        PT_COUNT(cs, segments);
         lu_hit hit;
         bool has;
         pt_flight fl;
@@ -1060,6 +1085,8 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
 
         if (fl.event == LU_K_EVENT_SCATTER) {
             if (++depth > st->max_depth) break;
+            PT_COUNT(cs, vertices);
+            if (mask & st->sealed_bits) PT_COUNT(cs, sealed_vertices);
             pt_vertex v = {0};
             v.surface = false;
             v.x = lu_v3_madd(o, d, fl.t);
@@ -1067,11 +1094,13 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
             v.g = s->media[fl.medium].phase_g;
             v.mask = mask;
             L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), nee(st, &v, depth < st->max_depth, rng)));
-            if (beams_on && depth + 1 <= st->max_depth)
+            if (beams_on && depth + 1 <= st->max_depth) {
+                PT_COUNT(cs, beam_vertices);
                 L = lu_v3_add(
                     L,
                     lu_v3_mul(spectral_weight(beta, r),
                               lu_v3_add(connect_beams(st, &v, beams, nbeams, rng), connect_vertex_beams(st, &v, rng))));
+            }
             if (depth >= st->max_depth) break;
             float u1 = rnd(rng), u2 = rnd(rng);
             lu_vec3 wi = lu_k_sample_hg(d, v.g, u1, u2);
@@ -1101,6 +1130,11 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                 const lu_medium *med = &s->media[sf->index];
                 float c = lu_v3_dot(hit.ng, d);
                 bool entering = c < 0.0f;
+                if (cs && (pm->diffuse || pm->refract)) {
+                    if (entering) cs->entries++;
+                    else cs->inside_hits++;
+                    if (specular_events >= PT_MAX_SPECULAR) cs->capped++;
+                }
                 if (pm->diffuse) {
                     /* Chiang, Kutz and Burley 2016: the interface transmits
                      * every ray, in a cosine-distributed direction about the
@@ -1110,6 +1144,7 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                      * max_depth (as dielectric events), but it is diffuse, so
                      * it takes next-event estimation and MIS. */
                     if (++specular_events > PT_MAX_SPECULAR) break;
+                    if (cs && !entering) cs->exits++;
                     lu_vec3 n = entering ? lu_v3_neg(hit.ng) : hit.ng;
                     mask = mask_set(mask, pm->bit, entering);
                     pt_vertex v = {0};
@@ -1157,6 +1192,15 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                 } else {
                     if (++specular_events > PT_MAX_SPECULAR) break;
                     lu_k_dielectric_sample ds = lu_k_sample_dielectric(d, hit.ng, pm->eta, rnd(rng));
+                    if (cs && !entering) {
+                        if (ds.refracted) {
+                            cs->exits++;
+                        } else {
+                            cs->reflected++;
+                            lu_vec3 t_unused;
+                            if (!lu_k_refract(d, lu_v3_neg(hit.ng), 1.0f / pm->eta, &t_unused)) cs->tir++;
+                        }
+                    }
                     if (ds.refracted) {
                         mask = mask_set(mask, pm->bit, entering);
                         beta = lu_v3_scale(beta, ds.weight);
@@ -1243,7 +1287,8 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
                 }
                 lu_vec3 d = lu_k_camera_dir(st->cam, (float)x + ox, (float)y + oy);
                 int hero = st->spectral == SPECTRAL_HERO ? (int)((hero0 + (uint32_t)k) % 3u) : -1;
-                lu_vec3 c = trace_path(st, cam->position, d, hero, st->beam_buf + (size_t)thread * st->beam_cap, &rng);
+                lu_vec3 c = trace_path(st, cam->position, d, hero, st->beam_buf + (size_t)thread * st->beam_cap,
+                                       st->stats_buf ? &st->stats_buf[thread] : NULL, &rng);
                 acc[0] += c.x;
                 acc[1] += c.y;
                 acc[2] += c.z;
@@ -1252,6 +1297,34 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
         long long done = atomic_fetch_add(&st->rows_done, 1) + 1;
         if (thread == 0) lu_progress_update(&st->progress, done);
     }
+}
+
+static void print_stats(const pt_stats *per_thread, int threads) {
+    pt_stats t = {0};
+    for (int i = 0; i < threads; i++) {
+        const pt_stats *c = &per_thread[i];
+        t.paths += c->paths;
+        t.segments += c->segments;
+        t.vertices += c->vertices;
+        t.sealed_vertices += c->sealed_vertices;
+        t.entries += c->entries;
+        t.inside_hits += c->inside_hits;
+        t.reflected += c->reflected;
+        t.tir += c->tir;
+        t.exits += c->exits;
+        t.capped += c->capped;
+        t.beam_vertices += c->beam_vertices;
+    }
+    double p = t.paths ? (double)t.paths : 1.0, e = t.entries ? (double)t.entries : 1.0;
+    fprintf(stderr,
+            "pathtrace stats: %llu paths; per path: %.2f segments, %.2f volume vertices (%.2f in sealed media), "
+            "%.3f entries, %.2f boundary hits from inside, %.2f internal reflections (%.2f total), %.3f exits, "
+            "%.2f beam-connected vertices; per entry: %.1f sealed vertices, %.2f internal reflections; "
+            "interface cap reached %llu times\n",
+            (unsigned long long)t.paths, (double)t.segments / p, (double)t.vertices / p, (double)t.sealed_vertices / p,
+            (double)t.entries / p, (double)t.inside_hits / p, (double)t.reflected / p, (double)t.tir / p,
+            (double)t.exits / p, (double)t.beam_vertices / p, (double)t.sealed_vertices / e, (double)t.reflected / e,
+            (unsigned long long)t.capped);
 }
 
 static void resolve(pt_state *st, int passes) {
@@ -1275,6 +1348,7 @@ static void pt_destroy(void *state) {
     free(st->klights);
     free(st->light_mask);
     free(st->beam_buf);
+    free(st->stats_buf);
     free(st);
 }
 
@@ -1295,6 +1369,7 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
     st->spectral = (int)params[P_SPECTRAL];
     st->equiangular = params[P_EQUIANGULAR] != 0.0;
     st->transmittance = (int)params[P_TRANSMITTANCE];
+    st->stats = params[P_STATS] != 0.0;
     lu_result r = LU_OK;
 
     st->eps = lu_scene_ray_epsilon(scene);
@@ -1450,6 +1525,17 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
         return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
     }
 
+    free(st->stats_buf);
+    st->stats_buf = NULL;
+    if (st->stats) {
+        st->stats_buf = calloc((size_t)lu_thread_count(), sizeof *st->stats_buf);
+        if (!st->stats_buf) {
+            free(st->accum);
+            st->accum = NULL;
+            return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
+        }
+    }
+
     int every = prog && prog->fn && prog->every > 0 ? prog->every : st->spp;
     atomic_store(&st->rows_done, 0);
     lu_progress_begin(&st->progress, "pathtrace", (int64_t)c->height * ((st->spp + every - 1) / every));
@@ -1463,6 +1549,7 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
         }
     }
     lu_progress_end(&st->progress);
+    if (st->stats_buf) print_stats(st->stats_buf, lu_thread_count());
     resolve(st, st->spp);
     free(st->accum);
     st->accum = NULL;
