@@ -5,7 +5,13 @@
  *     half-space under uniform light equals the bihemispherical albedo
  *     1 - 2 sqrt(1 - w) int_0^1 H(mu) mu dmu, with Chandrasekhar's H-function
  *     solved here by quadrature (Radiative Transfer, 1960, ch. V), for three
- *     single-scattering albedos at once (one per channel). */
+ *     single-scattering albedos at once (one per channel);
+ *   - Dwivedi sampling (pathtrace.guide=dwivedi): v0 solves its transcendental
+ *     equation, the direction density integrates to 1 and matches the
+ *     sampler's histogram; the guided walk returns the same half-space
+ *     albedo, keeps an albedo-1 dielectric sphere a white furnace, and its
+ *     mean equals the unguided walk's on an absorbing dielectric sphere
+ *     within 3 standard errors of the two together. */
 #include <lucent/lucent.h>
 
 #include <stdio.h>
@@ -13,6 +19,7 @@
 #include <string.h>
 
 #include "lu_test.h"
+#include "methods/pathtrace/pathtrace_internal.h"
 
 static bool render_json(const char *json, const char *settings, lu_image *img) {
     lu_scene s;
@@ -88,6 +95,38 @@ static double halfspace_albedo(double w) {
     return 1.0 - 2.0 * sqrt(1.0 - w) * h1;
 }
 
+static void test_dwivedi_sampling(void) {
+    const double albedo[4] = {0.3, 0.9, 0.99, 0.9999};
+    for (int k = 0; k < 4; k++) {
+        double a = albedo[k], v0 = lu_pt_dwivedi_v0(a);
+        CHECK_NEAR(0.5 * a * v0 * log((v0 + 1) / (v0 - 1)), 1.0, 1e-9);
+        /* Large v0: the diffusion limit v0 -> 1 / sqrt(3 (1 - a)). */
+        if (a > 0.999) CHECK_REL(v0, 1.0 / sqrt(3.0 * (1.0 - a)), 0.01);
+        float fv = (float)v0, lr = lu_pt_dwivedi_log(fv);
+        /* The density per steradian integrates to 1 (midpoint rule in mu0). */
+        double total = 0.0;
+        const int nq = 200000;
+        for (int i = 0; i < nq; i++) total += 2.0 * M_PI * lu_pt_dwivedi_pdf(fv, lr, (float)(-1.0 + (i + 0.5) * 2.0 / nq)) * (2.0 / nq);
+        CHECK_NEAR(total, 1.0, 1e-4);
+        /* 20-bin histogram of the sampler against the density's bin masses. */
+        enum { NB = 20, NS = 200000 };
+        int hist[NB] = {0};
+        uint32_t x = 12345u + (uint32_t)k;
+        for (int i = 0; i < NS; i++) {
+            x = x * 1664525u + 1013904223u;
+            float u = (float)(x >> 8) * (1.0f / 16777216.0f);
+            float mu = lu_pt_dwivedi_sample(fv, lr, u);
+            int b = (int)((mu + 1.0f) * 0.5f * NB);
+            hist[b < 0 ? 0 : (b >= NB ? NB - 1 : b)]++;
+        }
+        for (int b = 0; b < NB; b++) {
+            double lo = -1.0 + 2.0 * b / NB, hi = lo + 2.0 / NB;
+            double mass = log((v0 - lo) / (v0 - hi)) / log((v0 + 1) / (v0 - 1)), want = mass * NS;
+            CHECK_NEAR(hist[b], want, 5.0 * sqrt(want) + 1.0);
+        }
+    }
+}
+
 static void test_diffuse_boundary_halfspace(void) {
     /* A conservative medium has albedo 1 (and the quadrature knows it). */
     CHECK_NEAR(halfspace_albedo(1.0), 1.0, 1e-9);
@@ -103,20 +142,87 @@ static void test_diffuse_boundary_halfspace(void) {
         " \"lights\": [{\"type\": \"environment\", \"radiance\": 1}],"
         " \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": [0.5, 0.9, 0.99], \"sigma_a\": [0.5, 0.1, 0.01],"
         "   \"boundary\": {\"mesh\": {\"procedural\": \"box\", \"size\": [200, 100, 200]}, \"eta\": 1.4}}]}";
+    for (int guide = 0; guide < 2; guide++) {
+        lu_image img = {0};
+        const char *settings = guide ? "pathtrace.spp=256 pathtrace.seed=4 pathtrace.boundary=diffuse pathtrace.guide=dwivedi"
+                                     : "pathtrace.spp=256 pathtrace.seed=3 pathtrace.boundary=diffuse";
+        if (!render_json(json, settings, &img)) return;
+        for (int c = 0; c < 3; c++) {
+            double want = halfspace_albedo(w[c]), got, se;
+            channel_stats(&img, c, &got, &se);
+            fprintf(stderr,
+                    "  diffuse boundary%s, half-space albedo at w = %.2f: path tracer %.5f +- %.5f, H-function %.5f\n",
+                    guide ? " (guided)" : "", w[c], got, se, want);
+            CHECK_NEAR(got, want, 3.0 * se);
+            CHECK(se < 0.01 * want); /* the check has power */
+        }
+        lu_image_destroy(&img);
+    }
+}
+
+static const char *k_sphere =
+    "{\"camera\": {\"position\": [0, 0, 3], \"look_at\": [0, 0, 0], \"fov_y_deg\": 36, \"width\": 12, \"height\": 12},"
+    " \"lights\": [{\"type\": \"environment\", \"radiance\": [0.5, 1.0, 2.0]}],"
+    " \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": [%g, %g, %g], \"sigma_a\": [%g, %g, %g], \"phase_g\": %g,"
+    "   \"boundary\": {\"mesh\": {\"procedural\": \"sphere\", \"radius\": 1, \"subdivisions\": 3}, \"eta\": 1.5}}]}";
+
+static void test_guided_unbiased(void) {
+    char json[1024];
+    /* Albedo 1 inside a dielectric: the guided walk must return the environment. */
+    snprintf(json, sizeof json, k_sphere, 6.0, 10.0, 16.0, 0.0, 0.0, 0.0, 0.0);
     lu_image img = {0};
-    if (!render_json(json, "pathtrace.spp=256 pathtrace.seed=3 pathtrace.boundary=diffuse", &img)) return;
-    for (int c = 0; c < 3; c++) {
-        double want = halfspace_albedo(w[c]), got, se;
-        channel_stats(&img, c, &got, &se);
-        fprintf(stderr, "  diffuse boundary, half-space albedo at w = %.2f: path tracer %.5f +- %.5f, H-function %.5f\n",
-                w[c], got, se, want);
-        CHECK_NEAR(got, want, 3.0 * se);
-        CHECK(se < 0.01 * want); /* the check has power */
+    const double L[3] = {0.5, 1.0, 2.0};
+    if (render_json(json, "pathtrace.spp=96 pathtrace.boundary=refract pathtrace.guide=dwivedi", &img)) {
+        for (int c = 0; c < 3; c++) {
+            double m, se;
+            channel_stats(&img, c, &m, &se);
+            fprintf(stderr, "  guided furnace channel %d: %.5f +- %.5f (environment %.3f)\n", c, m, se, L[c]);
+            CHECK_NEAR(m, L[c], 3.0 * se + 1e-6);
+            CHECK(se < 0.02 * L[c]);
+        }
     }
     lu_image_destroy(&img);
+    /* Absorbing and chromatic, both boundaries: guided against unguided. */
+    snprintf(json, sizeof json, k_sphere, 6.0, 10.0, 16.0, 0.3, 0.1, 0.02, 0.0);
+    for (int bd = 0; bd < 2; bd++) {
+        lu_image a = {0}, b = {0};
+        char sa[256], sb[256];
+        const char *boundary = bd ? "diffuse" : "refract";
+        snprintf(sa, sizeof sa, "pathtrace.spp=384 pathtrace.seed=11 pathtrace.boundary=%s", boundary);
+        snprintf(sb, sizeof sb, "pathtrace.spp=384 pathtrace.seed=12 pathtrace.boundary=%s pathtrace.guide=dwivedi",
+                 boundary);
+        if (render_json(json, sa, &a) && render_json(json, sb, &b)) {
+            /* The per-pixel difference of two independent images has mean 0
+             * under "same expectation" and its spread is the two estimators'
+             * noise alone (the image's own structure cancels). */
+            int n = a.width * a.height;
+            for (int c = 0; c < 3; c++) {
+                double md = 0, vd = 0, ma = 0;
+                for (int i = 0; i < n; i++) {
+                    md += b.rgb[3 * i + c] - a.rgb[3 * i + c];
+                    ma += a.rgb[3 * i + c];
+                }
+                md /= n;
+                ma /= n;
+                for (int i = 0; i < n; i++) {
+                    double e = b.rgb[3 * i + c] - a.rgb[3 * i + c] - md;
+                    vd += e * e;
+                }
+                double se = sqrt(vd / (n - 1) / n);
+                fprintf(stderr, "  absorbing sphere (%s) channel %d: unguided mean %.5f, guided - unguided %+.5f +- %.5f\n",
+                        boundary, c, ma, md, se);
+                CHECK_NEAR(md, 0.0, 3.0 * se);
+                CHECK(se < 0.01 * ma);
+            }
+        }
+        lu_image_destroy(&a);
+        lu_image_destroy(&b);
+    }
 }
 
 int main(void) {
+    RUN_TEST(test_dwivedi_sampling);
     RUN_TEST(test_diffuse_boundary_halfspace);
+    RUN_TEST(test_guided_unbiased);
     TEST_EXIT();
 }

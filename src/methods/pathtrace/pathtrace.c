@@ -91,6 +91,7 @@ enum {
     P_EQUIANGULAR,
     P_TRANSMITTANCE,
     P_STATS,
+    P_GUIDE,
     P_COUNT
 };
 
@@ -127,7 +128,12 @@ static const lu_param_desc k_params[P_COUNT] = {
                          "optical depth (lu_march.h)"},
     [P_STATS] = {"stats", LU_PARAM_BOOL, 0, 0, 1, NULL,
                  "print walk counters on stderr after a render (vertices, boundary hits, internal reflections)"},
+    [P_GUIDE] = {"guide", LU_PARAM_CHOICE, 0, 0, 1, "off|dwivedi",
+                 "walks in sealed constant media (refract or diffuse boundaries, hero spectral): off, or a one-sample "
+                 "mixture of the classical walk and Dwivedi sampling towards the last boundary point (unbiased)"},
 };
+
+#define PT_GUIDE_PROB 0.5f /* share of guided steps in the mixture */
 
 #define PT_MAX_BOUNDED 64 /* bounded media: one bit each in a path's inside mask */
 #define PT_MAX_MEDIA 128
@@ -149,6 +155,7 @@ typedef struct pt_medium {
     int max_pieces;     /* DDA bound for exact optical depth */
     lu_aabb box;        /* world box of non-zero density */
     lu_accel *inside;   /* its boundary alone, for inside tests */
+    float v0[3], vlog[3]; /* constant media: Dwivedi's v0 per channel and ln((v0 + 1) / (v0 - 1)) */
 } pt_medium;
 
 enum { SURF_OPAQUE = 0, SURF_BOUNDARY };
@@ -186,6 +193,7 @@ struct pt_state {
     bool equiangular;
     int transmittance;
     bool stats;
+    bool guide;
     pt_stats *stats_buf; /* per thread, when stats */
     uint32_t seed;
     int boundary_mode;
@@ -1044,6 +1052,75 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams, 
  * spectral tracking). */
 static lu_vec3 spectral_weight(lu_vec3 beta, lu_vec3 r) { return lu_v3_scale(beta, 1.0f / lu_v3_avg(r)); }
 
+/* ---- the guided walk (pathtrace.guide=dwivedi) ------------------------------------------------ */
+
+/* Whether a vertex in medium m under `mask` takes guided steps: m is a
+ * sealed constant medium and the only one present (so a step's free flight
+ * is one exponential per channel). */
+static bool guide_applies(const pt_state *st, int m, uint64_t mask) {
+    const pt_medium *pm = &st->media[m];
+    if (!pm->constant || pm->bit < 0 || !((st->sealed_bits >> pm->bit) & 1u)) return false;
+    for (int k = 0; k < st->medium_count; k++)
+        if (k != m && medium_active(&st->media[k], mask)) return false;
+    return true;
+}
+
+/* The step from a vertex in medium m along d (already chosen, by the
+ * strategy `guided`), whose distance the same strategy now samples:
+ * classical, rate sigma_t of the hero channel; guided, the stretched rate
+ * sigma_t (1 - mu0 / v0). The step's density under hero channel c is the
+ * mixture (1 - P) phase(d) p_c(t) + P dwivedi_c(d) q_c(t | d) (P =
+ * PT_GUIDE_PROB; survival probabilities when the step reaches the surface);
+ * beta takes f / p_hero and r takes p_c / p_hero, so that, as everywhere
+ * else, a contribution is f / avg_c(p_c): the balance heuristic over the
+ * channels, each of them a two-technique mixture. The surface is looked for
+ * up to the sampled distance only. */
+static pt_flight guided_step(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, lu_vec3 n_out, bool guided, float phase,
+                             int hero, lu_vec3 *beta, lu_vec3 *r, lu_k_rng *rng, lu_hit *hit, bool *has) {
+    const pt_medium *pm = &st->media[m];
+    const lu_medium *med = &st->scene->media[m];
+    pt_flight f = {-1, -1, LU_K_FAR};
+    float mu0 = lu_v3_dot(d, n_out);
+    float sh = lu_v3_get(pm->sigma_t, hero) * pm->cdens;
+    float rate = guided ? sh * (1.0f - mu0 / pm->v0[hero]) : sh;
+    float t = -logf(1.0f - rnd(rng)) / rate;
+    float a, b;
+    if (!medium_span(pm, o, d, LU_K_FAR, &a, &b)) b = 0.0f;
+    *has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, t, hit);
+    bool collide = !*has && t < b;
+    float tt = *has ? hit->t : (collide ? t : b);
+    float pc[3], fc[3];
+    for (int c = 0; c < 3; c++) {
+        float sc = lu_v3_get(pm->sigma_t, c) * pm->cdens;
+        float rg = sc * (1.0f - mu0 / pm->v0[c]);
+        float tc = expf(-sc * tt), tg = expf(-rg * tt);
+        float pg = lu_pt_dwivedi_pdf(pm->v0[c], pm->vlog[c], mu0);
+        if (collide) {
+            pc[c] = (1.0f - PT_GUIDE_PROB) * phase * sc * tc + PT_GUIDE_PROB * pg * rg * tg;
+            fc[c] = phase * tc * lu_v3_get(med->sigma_s, c) * pm->cdens;
+        } else {
+            pc[c] = (1.0f - PT_GUIDE_PROB) * phase * tc + PT_GUIDE_PROB * pg * tg;
+            fc[c] = phase * tc;
+        }
+    }
+    float ph = pc[hero];
+    if (!(ph > 0.0f)) {
+        *beta = lu_v3s(0.0f);
+        f.event = LU_K_EVENT_ABSORB;
+        return f;
+    }
+    *beta = lu_v3_mul(*beta, lu_v3_scale(lu_v3(fc[0], fc[1], fc[2]), 1.0f / ph));
+    *r = lu_v3_mul(*r, lu_v3_scale(lu_v3(pc[0], pc[1], pc[2]), 1.0f / ph));
+    if (collide) {
+        f.event = LU_K_EVENT_SCATTER;
+        f.medium = m;
+        f.t = tt;
+    } else if (*has) {
+        f.t = hit->t;
+    }
+    return f;
+}
+
 /* ---- one camera path ---------------------------------------------------------------------- */
 
 /* hero: the channel whose coefficients choose free-flight events (spectral
@@ -1061,6 +1138,13 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
     bool prev_delta = true; /* last direction chosen by the camera or a dielectric: no MIS */
     float prev_pdf = 0.0f;
 
+    /* guide=dwivedi: the outward normal at the last boundary point of a
+     * sealed medium, and the pending guided step's strategy and phase. */
+    lu_vec3 guide_n = lu_v3s(0.0f);
+    bool have_guide_n = false, guide_pending = false, guide_pick = false;
+    int guide_m = -1;
+    float guide_phase = 0.0f;
+
     int nbeams = 0;
     bool beams_on = st->have_refract && st->have_delta_lights && st->max_depth >= 2;
     if (beams_on && st->light_paths > 0) nbeams = trace_light_paths(st, rng, beams, st->beam_cap);
@@ -1073,8 +1157,11 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
         pt_flight fl;
         /* segment_nee needs t_end first unless it has nothing to do here;
          * then the ray cast can be fused with the free flight. */
-        if (!segment_nee_idle(st, mask, depth) ||
-            !free_flight_to_surface(st, o, d, mask, &beta, &r, hero, rng, &fl, &hit, &has)) {
+        if (guide_pending) { /* guide_applies held at the vertex: no other medium, no segment NEE */
+            guide_pending = false;
+            fl = guided_step(st, guide_m, o, d, guide_n, guide_pick, guide_phase, hero, &beta, &r, rng, &hit, &has);
+        } else if (!segment_nee_idle(st, mask, depth) ||
+                   !free_flight_to_surface(st, o, d, mask, &beta, &r, hero, rng, &fl, &hit, &has)) {
             has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, LU_K_FAR, &hit);
             float t_end = has ? hit.t : LU_K_FAR;
             if (!segment_nee_idle(st, mask, depth))
@@ -1102,8 +1189,27 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                               lu_v3_add(connect_beams(st, &v, beams, nbeams, rng), connect_vertex_beams(st, &v, rng))));
             }
             if (depth >= st->max_depth) break;
-            float u1 = rnd(rng), u2 = rnd(rng);
-            lu_vec3 wi = lu_k_sample_hg(d, v.g, u1, u2);
+            lu_vec3 wi;
+            if (st->guide && hero >= 0 && have_guide_n && guide_applies(st, fl.medium, mask) &&
+                segment_nee_idle(st, mask, depth)) {
+                /* One-sample mixture of the classical and the guided walk;
+                 * guided_step weights the direction and distance together. */
+                float us = rnd(rng), u1 = rnd(rng), u2 = rnd(rng);
+                const pt_medium *gm = &st->media[fl.medium];
+                guide_pick = us < PT_GUIDE_PROB;
+                if (guide_pick) {
+                    float mu0 = lu_pt_dwivedi_sample(gm->v0[hero], gm->vlog[hero], u1);
+                    wi = lu_k_dir_about(guide_n, mu0, 2.0f * LU_PI * u2);
+                } else {
+                    wi = lu_k_sample_hg(d, v.g, u1, u2);
+                }
+                guide_phase = lu_k_phase_hg(lu_v3_dot(d, wi), v.g);
+                guide_m = fl.medium;
+                guide_pending = true;
+            } else {
+                float u1 = rnd(rng), u2 = rnd(rng);
+                wi = lu_k_sample_hg(d, v.g, u1, u2);
+            }
             prev_pdf = lu_k_phase_hg(lu_v3_dot(d, wi), v.g);
             prev_delta = false;
             primary = false;
@@ -1130,6 +1236,10 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                 const lu_medium *med = &s->media[sf->index];
                 float c = lu_v3_dot(hit.ng, d);
                 bool entering = c < 0.0f;
+                if (pm->diffuse || pm->refract) {
+                    guide_n = hit.ng;
+                    have_guide_n = true;
+                }
                 if (cs && (pm->diffuse || pm->refract)) {
                     if (entering) cs->entries++;
                     else cs->inside_hits++;
@@ -1370,6 +1480,7 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
     st->equiangular = params[P_EQUIANGULAR] != 0.0;
     st->transmittance = (int)params[P_TRANSMITTANCE];
     st->stats = params[P_STATS] != 0.0;
+    st->guide = params[P_GUIDE] != 0.0;
     lu_result r = LU_OK;
 
     st->eps = lu_scene_ray_epsilon(scene);
@@ -1404,6 +1515,12 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
         pm->bit = -1;
         if (pm->constant) {
             pm->lambda = lu_v3_avg(pm->sigma_t) * pm->cdens;
+            for (int c = 0; c < 3; c++) {
+                /* similarity-reduced albedo for anisotropic media */
+                double ss = lu_v3_get(med->sigma_s, c) * (1.0 - med->phase_g), sa = lu_v3_get(med->sigma_a, c);
+                pm->v0[c] = (float)lu_pt_dwivedi_v0(ss + sa > 0.0 ? ss / (ss + sa) : 0.0);
+                pm->vlog[c] = lu_pt_dwivedi_log(pm->v0[c]);
+            }
         } else {
             r = lu_pt_majorant_build(&med->grid, (int)st->block, &pm->maj, err);
             pm->max_pieces = med->grid.nx + med->grid.ny + med->grid.nz + 8;
