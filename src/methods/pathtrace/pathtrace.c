@@ -20,7 +20,12 @@
  *     on every crossing except the camera ray's own, the boundary's coat
  *     reflecting direct light weighted by F_r); "refract" boundaries are smooth
  *     dielectrics (Fresnel reflection or refraction, radiance scaled by
- *     (eta_i / eta_t)^2, total internal reflection);
+ *     (eta_i / eta_t)^2, total internal reflection); "diffuse" boundaries are
+ *     white Lambertian transmitters both ways (Chiang, Kutz and Burley 2016),
+ *     so a walk ends at its first boundary hit; inside a sealed (refracting
+ *     or diffuse) constant medium the ray cast is fused with the free flight,
+ *     and guide=dwivedi mixes Dwivedi-guided steps into the walk
+ *     (pathtrace_guide.c);
  *   - a delta light behind a refracting boundary cannot be reached by
  *     next-event estimation. Light subpaths carry the light through the
  *     specular chain; their segments after the first specular event are
