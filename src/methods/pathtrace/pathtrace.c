@@ -39,7 +39,11 @@
  *     refracting boundary, Walter et al. 2009), which is missing.
  * Depth counts scattering vertices (volume events and surface bounces, not
  * dielectric interface events): depth 1 is single scattering and reproduces
- * `reference`. */
+ * `reference`.
+ *
+ * Over 800 lines: the path's strategies (walk, next-event estimation, beams,
+ * light subpaths) share one private state and its helpers; what stands alone
+ * (the guided-walk sampling) lives in pathtrace_guide.c. */
 #include <lucent/lucent.h>
 
 #include <stdatomic.h>
