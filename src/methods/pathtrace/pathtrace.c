@@ -41,9 +41,10 @@
  * dielectric interface events): depth 1 is single scattering and reproduces
  * `reference`.
  *
- * Over 800 lines: the path's strategies (walk, next-event estimation, beams,
- * light subpaths) share one private state and its helpers; what stands alone
- * (the guided-walk sampling) lives in pathtrace_guide.c. */
+ * Over 800 lines: one path's strategies (next-event estimation, beams, light
+ * subpaths, the interface events) share its private state
+ * (pathtrace_state.h) and helpers; free flight and the subsurface walk's
+ * steps live in pathtrace_walk.c, the Dwivedi sampling in pathtrace_guide.c. */
 #include <lucent/lucent.h>
 
 #include <stdatomic.h>
@@ -53,38 +54,7 @@
 
 #include "methods/frame.h"
 #include "methods/methods.h"
-#include "methods/pathtrace/pathtrace_internal.h"
-
-typedef struct pt_state pt_state;
-
-/* Walk counters (pathtrace.stats): one block per thread, summed at the end.
- * Counting never draws random numbers, so it does not change an image. */
-typedef struct pt_stats {
-    uint64_t paths, segments;       /* camera samples; ray segments walked (one surface query each) */
-    uint64_t vertices, sealed_vertices; /* volume scattering vertices; of those inside a sealed medium */
-    uint64_t entries, inside_hits;  /* boundary crossings into a sealed medium; boundary hits from inside one */
-    uint64_t reflected, tir;        /* inside hits sent back in by Fresnel reflection; of those, total */
-    uint64_t exits, capped;         /* inside hits leaving; paths cut by the interface-event cap */
-    uint64_t beam_vertices;         /* vertices connected to light beams */
-    uint64_t pad[5];                /* one cache line apart per thread */
-} pt_stats;
-#define PT_COUNT(cs, field) \
-    do {                    \
-        if (cs) (cs)->field++; \
-    } while (0)
-
-/* ---- kernel context: how the shared kernels read media on the CPU ---- */
-struct lu_k_ctx {
-    const pt_state *st;
-};
-static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p);
-static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz);
-
-#include "kernels/lu_camera.h"
-#include "methods/common/lu_march.h"
-#include "kernels/lu_optics.h"
-#include "methods/common/lu_sampling.h"
-#include "methods/pathtrace/lu_tracking.h"
+#include "methods/pathtrace/pathtrace_state.h"
 
 enum {
     P_SPP,
@@ -141,129 +111,6 @@ static const lu_param_desc k_params[P_COUNT] = {
                  "walks in sealed constant media (refract or diffuse boundaries, hero spectral): off, or a one-sample "
                  "mixture of the classical walk and Dwivedi sampling towards the last boundary point (unbiased)"},
 };
-
-#define PT_GUIDE_PROB 0.5f /* share of guided steps in the mixture */
-
-#define PT_MAX_BOUNDED 64 /* bounded media: one bit each in a path's inside mask */
-#define PT_MAX_MEDIA 128
-#define PT_MAX_CROSSINGS 256 /* surfaces a shadow ray may cross */
-#define PT_MAX_SPECULAR 256  /* dielectric events per path */
-#define PT_MAX_LIGHT_SEGMENTS 16
-
-typedef struct pt_medium {
-    lu_vec3 sigma_t;
-    float sigma_max; /* largest channel of sigma_t */
-    bool constant;
-    float cdens; /* constant density */
-    int bit;     /* bounded: its bit in the inside mask; -1 unbounded */
-    bool refract;
-    bool diffuse; /* Lambertian-transmitting boundary (boundary=diffuse) */
-    float eta;
-    float lambda;       /* a typical extinction (mean channel), for beam distance sampling */
-    lu_pt_majorant maj; /* grid media */
-    int max_pieces;     /* DDA bound for exact optical depth */
-    lu_aabb box;        /* world box of non-zero density */
-    lu_accel *inside;   /* its boundary alone, for inside tests */
-    float v0[3], vlog[3]; /* constant media: Dwivedi's v0 per channel and ln((v0 + 1) / (v0 - 1)) */
-} pt_medium;
-
-enum { SURF_OPAQUE = 0, SURF_BOUNDARY };
-typedef struct pt_surf {
-    int kind;
-    int index; /* object or medium */
-} pt_surf;
-
-typedef struct pt_env {
-    int light;       /* index in the scene's lights */
-    int w, h;        /* distribution cells */
-    float *cdf_rows; /* h + 1 */
-    float *cdf_cols; /* h * (w + 1) */
-    float *prob;     /* w * h, probability of each cell */
-} pt_env;
-
-typedef struct pt_beam {
-    lu_vec3 o, u;
-    float len;
-    lu_vec3 flux;
-    uint64_t mask;
-    float lambda;
-    /* Forward beams that are the first segment after refracting into a
-     * bounded medium: the vertex strategy (connect_vertex_beams) makes the
-     * same beams, so these carry what its MIS weight needs. */
-    int entry_medium; /* -1: no other strategy makes this beam */
-    lu_vec3 s, ns;    /* entry point and outward normal there */
-    float pdf_fwd;    /* area pdf of s under light subpath sampling (refraction choice included) */
-} pt_beam;
-
-struct pt_state {
-    int spp, max_depth, rr_depth, light_paths;
-    bool rr, jitter;
-    int spectral;
-    bool equiangular;
-    int transmittance;
-    bool stats;
-    bool guide;
-    pt_stats *stats_buf; /* per thread, when stats */
-    uint32_t seed;
-    int boundary_mode;
-    float block;
-    lu_accel *surf;
-    pt_surf *surf_info;
-    int surf_count;
-    pt_medium *media;
-    int medium_count;
-    pt_env *envs;
-    int env_count;
-    float eps;
-    bool have_refract;
-    uint64_t refract_bits; /* inside-mask bits of refracting media */
-    uint64_t sealed_bits;  /* refracting or diffuse: no shadow ray crosses their boundary */
-    int delta_light_count;
-    lu_vec3 refract_center;
-    float refract_radius;
-    lu_vec3 scene_center;
-    float scene_radius;
-    /* Per render: */
-    const lu_scene *scene;
-    struct lu_k_ctx kctx;
-    lu_k_camera cam;
-    lu_k_light *klights;
-    uint64_t *light_mask; /* inside mask at each light's position */
-    uint64_t camera_mask;
-    bool have_delta_lights;
-    bool have_point_lights; /* point or spot */
-    double *accum;
-    pt_beam *beam_buf; /* beam_cap per thread */
-    int beam_cap;
-    lu_image *out;
-    int pass_begin, pass_end;
-    atomic_llong rows_done;
-    lu_progress progress;
-};
-
-static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
-    const pt_medium *pm = &c->st->media[m];
-    return pm->constant ? pm->cdens : lu_grid_sample(&c->st->scene->media[m].grid, p);
-}
-
-static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz) {
-    const pt_medium *pm = &c->st->media[m];
-    return pm->constant ? pm->cdens : lu_pt_majorant_at(&pm->maj, bx, by, bz);
-}
-
-/* ---- helpers --------------------------------------------------------------------- */
-
-static bool medium_active(const pt_medium *pm, uint64_t mask) { return pm->bit < 0 || ((mask >> pm->bit) & 1u); }
-
-static uint64_t mask_set(uint64_t mask, int bit, bool inside) {
-    return inside ? mask | ((uint64_t)1 << bit) : mask & ~((uint64_t)1 << bit);
-}
-
-static lu_vec3 offset_point(lu_vec3 p, lu_vec3 ng, lu_vec3 dir, float eps) {
-    return lu_v3_madd(p, ng, lu_v3_dot(ng, dir) > 0.0f ? eps : -eps);
-}
-
-static float rnd(lu_k_rng *r) { return lu_k_rng_float(r); }
 
 /* ---- environment ------------------------------------------------------------------- */
 
@@ -366,173 +213,6 @@ static bool env_sample(const pt_env *e, float u1, float u2, lu_vec3 *dir, float 
     *dir = lu_k_env_dir(u, v);
     *pdf = lu_k_env_pdf_solid_angle(e->prob[(size_t)y * e->w + x] * (float)e->w * (float)e->h, v);
     return *pdf > 0.0f;
-}
-
-/* ---- media along a segment ------------------------------------------------------------ */
-
-typedef struct pt_walker {
-    int m;
-    float t, t1;
-    lu_vec3 oi, di;
-    lu_k_walk w;
-} pt_walker;
-
-/* Starts medium m's collision process over [a, b]; false if nothing to walk. */
-static bool walker_begin(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, float a, float b, lu_k_rng *rng,
-                         pt_walker *wk) {
-    const pt_medium *pm = &st->media[m];
-    const lu_medium *med = &st->scene->media[m];
-    wk->m = m;
-    wk->t1 = b;
-    if (pm->constant) {
-        float mu = pm->sigma_max * pm->cdens;
-        if (!(mu > 0.0f)) return false;
-        wk->t = a - logf(1.0f - rnd(rng)) / mu;
-        return true;
-    }
-    if (!(pm->sigma_max > 0.0f)) return false;
-    wk->oi = lu_affine_point(&med->world_to_index, o);
-    wk->di = lu_affine_vector(&med->world_to_index, d);
-    wk->w = lu_k_walk_begin(wk->oi, wk->di, a, b, st->block);
-    wk->t = lu_k_walk_tentative(&st->kctx, m, &wk->w, a, pm->sigma_max, rng);
-    return true;
-}
-
-static void walker_advance(const pt_state *st, pt_walker *wk, lu_k_rng *rng) {
-    const pt_medium *pm = &st->media[wk->m];
-    if (pm->constant)
-        wk->t -= logf(1.0f - rnd(rng)) / (pm->sigma_max * pm->cdens);
-    else
-        wk->t = lu_k_walk_tentative(&st->kctx, wk->m, &wk->w, wk->t, pm->sigma_max, rng);
-}
-
-/* Interval of the ray inside medium m's box, within [0, t_end]. */
-static bool medium_span(const pt_medium *pm, lu_vec3 o, lu_vec3 d, float t_end, float *a, float *b) {
-    return lu_aabb_ray(pm->box, o, d, 0.0f, t_end, a, b) && *b > *a;
-}
-
-typedef struct pt_flight {
-    int event; /* LU_K_EVENT_SCATTER, or -1: reached t_end; LU_K_EVENT_ABSORB: path ended */
-    int medium;
-    float t;
-} pt_flight;
-
-static int earliest_walker(const pt_walker *wk, int n);
-static bool flight_event(const pt_state *st, pt_walker *w, lu_vec3 *beta, lu_vec3 *r, int hero, lu_k_rng *rng,
-                         pt_flight *f);
-
-/* Free flight over (0, t_end) through every medium active under `mask`.
- * hero >= 0: hero-channel sampling (r tracks the spectral MIS ratios);
- * hero < 0: spectral tracking. */
-static pt_flight free_flight(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end, uint64_t mask, lu_vec3 *beta,
-                             lu_vec3 *r, int hero, lu_k_rng *rng) {
-    pt_walker wk[PT_MAX_MEDIA];
-    int n = 0;
-    pt_flight f = {-1, -1, t_end};
-    for (int m = 0; m < st->medium_count; m++) {
-        const pt_medium *pm = &st->media[m];
-        float a, b;
-        if (!medium_active(pm, mask) || !medium_span(pm, o, d, t_end, &a, &b)) continue;
-        if (walker_begin(st, m, o, d, a, b, rng, &wk[n])) n++;
-    }
-    for (int guard = 0; guard < 100000000; guard++) {
-        int k = earliest_walker(wk, n);
-        if (k < 0) return f;
-        if (flight_event(st, &wk[k], beta, r, hero, rng, &f)) return f;
-    }
-    return f;
-}
-
-/* The walker whose tentative collision comes first, or -1 when all are done. */
-static int earliest_walker(const pt_walker *wk, int n) {
-    int k = -1;
-    float tk = INFINITY;
-    for (int i = 0; i < n; i++)
-        if (wk[i].t < wk[i].t1 && wk[i].t < tk) {
-            tk = wk[i].t;
-            k = i;
-        }
-    return k;
-}
-
-/* The event at walker w's tentative collision: true when the flight ends
- * there (*f set: a scattering or nothing left to carry), false after a null
- * collision (the walker has moved on). */
-static bool flight_event(const pt_state *st, pt_walker *w, lu_vec3 *beta, lu_vec3 *r, int hero, lu_k_rng *rng,
-                         pt_flight *f) {
-    const pt_medium *pm = &st->media[w->m];
-    const lu_medium *med = &st->scene->media[w->m];
-    float tk = w->t;
-    float dens, mu;
-    if (pm->constant) {
-        dens = pm->cdens;
-        mu = pm->sigma_max * dens;
-    } else {
-        dens = lu_grid_sample(&med->grid, lu_v3_madd(w->oi, w->di, tk));
-        mu = pm->sigma_max * w->w.dmax;
-    }
-    lu_vec3 sa = lu_v3_scale(med->sigma_a, dens), ss = lu_v3_scale(med->sigma_s, dens);
-    int ev = hero >= 0 ? lu_k_hero_event(beta, r, sa, ss, mu, hero, rnd(rng))
-                       : lu_k_spectral_event(beta, sa, ss, mu, rnd(rng));
-    if (ev == LU_K_EVENT_ABSORB) {
-        f->event = LU_K_EVENT_ABSORB;
-        return true;
-    }
-    if (ev == LU_K_EVENT_SCATTER) {
-        f->event = LU_K_EVENT_SCATTER;
-        f->medium = w->m;
-        f->t = tk;
-        return true;
-    }
-    walker_advance(st, w, rng);
-    return false;
-}
-
-/* The ray cast to the next surface fused with free_flight: the surface is
- * looked for only over each stretch between tentative collisions (a walk's
- * steps are short, and a short ray query is cheap), so a walk never casts to
- * infinity. Draws the same random numbers and returns the same flight and hit
- * as lu_accel_closest to infinity followed by free_flight, provided every
- * medium the ray meets has constant density and contains the origin (then
- * free_flight starts the same walkers whatever t_end is); returns false,
- * having drawn nothing, when that does not hold. */
-static bool free_flight_to_surface(const pt_state *st, lu_vec3 o, lu_vec3 d, uint64_t mask, lu_vec3 *beta, lu_vec3 *r,
-                                   int hero, lu_k_rng *rng, pt_flight *f, lu_hit *hit, bool *has) {
-    int ms[PT_MAX_MEDIA];
-    float bs[PT_MAX_MEDIA];
-    int nm = 0;
-    for (int m = 0; m < st->medium_count; m++) {
-        const pt_medium *pm = &st->media[m];
-        float a, b;
-        if (!medium_active(pm, mask) || !medium_span(pm, o, d, LU_K_FAR, &a, &b)) continue;
-        if (!pm->constant || a > 0.0f) return false;
-        ms[nm] = m;
-        bs[nm++] = b;
-    }
-    pt_walker wk[PT_MAX_MEDIA];
-    int n = 0;
-    for (int i = 0; i < nm; i++)
-        if (walker_begin(st, ms[i], o, d, 0.0f, bs[i], rng, &wk[n])) n++;
-    f->event = -1;
-    f->medium = -1;
-    f->t = LU_K_FAR;
-    *has = false;
-    float t_lo = 0.0f;
-    for (int guard = 0; guard < 100000000; guard++) {
-        int k = earliest_walker(wk, n);
-        float tq = k < 0 ? LU_K_FAR : wk[k].t;
-        /* [0, t_lo] is known to be free of surfaces (closed intervals). */
-        if (st->surf && tq > t_lo && lu_accel_closest(st->surf, o, d, t_lo, tq, hit)) {
-            *has = true;
-            f->event = -1;
-            f->t = hit->t;
-            return true;
-        }
-        if (k < 0) return true;
-        t_lo = tq;
-        if (flight_event(st, &wk[k], beta, r, hero, rng, f)) return true;
-    }
-    return true;
 }
 
 /* Transmittance over (0, t_end) of the media active under `mask` (no
@@ -1061,75 +741,6 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams, 
  * spectral tracking). */
 static lu_vec3 spectral_weight(lu_vec3 beta, lu_vec3 r) { return lu_v3_scale(beta, 1.0f / lu_v3_avg(r)); }
 
-/* ---- the guided walk (pathtrace.guide=dwivedi) ------------------------------------------------ */
-
-/* Whether a vertex in medium m under `mask` takes guided steps: m is a
- * sealed constant medium and the only one present (so a step's free flight
- * is one exponential per channel). */
-static bool guide_applies(const pt_state *st, int m, uint64_t mask) {
-    const pt_medium *pm = &st->media[m];
-    if (!pm->constant || pm->bit < 0 || !((st->sealed_bits >> pm->bit) & 1u)) return false;
-    for (int k = 0; k < st->medium_count; k++)
-        if (k != m && medium_active(&st->media[k], mask)) return false;
-    return true;
-}
-
-/* The step from a vertex in medium m along d (already chosen, by the
- * strategy `guided`), whose distance the same strategy now samples:
- * classical, rate sigma_t of the hero channel; guided, the stretched rate
- * sigma_t (1 - mu0 / v0). The step's density under hero channel c is the
- * mixture (1 - P) phase(d) p_c(t) + P dwivedi_c(d) q_c(t | d) (P =
- * PT_GUIDE_PROB; survival probabilities when the step reaches the surface);
- * beta takes f / p_hero and r takes p_c / p_hero, so that, as everywhere
- * else, a contribution is f / avg_c(p_c): the balance heuristic over the
- * channels, each of them a two-technique mixture. The surface is looked for
- * up to the sampled distance only. */
-static pt_flight guided_step(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, lu_vec3 n_out, bool guided, float phase,
-                             int hero, lu_vec3 *beta, lu_vec3 *r, lu_k_rng *rng, lu_hit *hit, bool *has) {
-    const pt_medium *pm = &st->media[m];
-    const lu_medium *med = &st->scene->media[m];
-    pt_flight f = {-1, -1, LU_K_FAR};
-    float mu0 = lu_v3_dot(d, n_out);
-    float sh = lu_v3_get(pm->sigma_t, hero) * pm->cdens;
-    float rate = guided ? sh * (1.0f - mu0 / pm->v0[hero]) : sh;
-    float t = -logf(1.0f - rnd(rng)) / rate;
-    float a, b;
-    if (!medium_span(pm, o, d, LU_K_FAR, &a, &b)) b = 0.0f;
-    *has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, t, hit);
-    bool collide = !*has && t < b;
-    float tt = *has ? hit->t : (collide ? t : b);
-    float pc[3], fc[3];
-    for (int c = 0; c < 3; c++) {
-        float sc = lu_v3_get(pm->sigma_t, c) * pm->cdens;
-        float rg = sc * (1.0f - mu0 / pm->v0[c]);
-        float tc = expf(-sc * tt), tg = expf(-rg * tt);
-        float pg = lu_pt_dwivedi_pdf(pm->v0[c], pm->vlog[c], mu0);
-        if (collide) {
-            pc[c] = (1.0f - PT_GUIDE_PROB) * phase * sc * tc + PT_GUIDE_PROB * pg * rg * tg;
-            fc[c] = phase * tc * lu_v3_get(med->sigma_s, c) * pm->cdens;
-        } else {
-            pc[c] = (1.0f - PT_GUIDE_PROB) * phase * tc + PT_GUIDE_PROB * pg * tg;
-            fc[c] = phase * tc;
-        }
-    }
-    float ph = pc[hero];
-    if (!(ph > 0.0f)) {
-        *beta = lu_v3s(0.0f);
-        f.event = LU_K_EVENT_ABSORB;
-        return f;
-    }
-    *beta = lu_v3_mul(*beta, lu_v3_scale(lu_v3(fc[0], fc[1], fc[2]), 1.0f / ph));
-    *r = lu_v3_mul(*r, lu_v3_scale(lu_v3(pc[0], pc[1], pc[2]), 1.0f / ph));
-    if (collide) {
-        f.event = LU_K_EVENT_SCATTER;
-        f.medium = m;
-        f.t = tt;
-    } else if (*has) {
-        f.t = hit->t;
-    }
-    return f;
-}
-
 /* ---- one camera path ---------------------------------------------------------------------- */
 
 /* hero: the channel whose coefficients choose free-flight events (spectral
@@ -1166,16 +777,16 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
         pt_flight fl;
         /* segment_nee needs t_end first unless it has nothing to do here;
          * then the ray cast can be fused with the free flight. */
-        if (guide_pending) { /* guide_applies held at the vertex: no other medium, no segment NEE */
+        if (guide_pending) { /* lu_pt_guide_applies held at the vertex: no other medium, no segment NEE */
             guide_pending = false;
-            fl = guided_step(st, guide_m, o, d, guide_n, guide_pick, guide_phase, hero, &beta, &r, rng, &hit, &has);
+            fl = lu_pt_guided_step(st, guide_m, o, d, guide_n, guide_pick, guide_phase, hero, &beta, &r, rng, &hit, &has);
         } else if (!segment_nee_idle(st, mask, depth) ||
-                   !free_flight_to_surface(st, o, d, mask, &beta, &r, hero, rng, &fl, &hit, &has)) {
+                   !lu_pt_free_flight_to_surface(st, o, d, mask, &beta, &r, hero, rng, &fl, &hit, &has)) {
             has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, LU_K_FAR, &hit);
             float t_end = has ? hit.t : LU_K_FAR;
             if (!segment_nee_idle(st, mask, depth))
                 L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), segment_nee(st, o, d, t_end, mask, rng)));
-            fl = free_flight(st, o, d, t_end, mask, &beta, &r, hero, rng);
+            fl = lu_pt_free_flight(st, o, d, t_end, mask, &beta, &r, hero, rng);
         }
         if (fl.event == LU_K_EVENT_ABSORB || lu_v3_maxc(beta) <= 0.0f) break;
 
@@ -1199,10 +810,10 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
             }
             if (depth >= st->max_depth) break;
             lu_vec3 wi;
-            if (st->guide && hero >= 0 && have_guide_n && guide_applies(st, fl.medium, mask) &&
+            if (st->guide && hero >= 0 && have_guide_n && lu_pt_guide_applies(st, fl.medium, mask) &&
                 segment_nee_idle(st, mask, depth)) {
                 /* One-sample mixture of the classical and the guided walk;
-                 * guided_step weights the direction and distance together. */
+                 * lu_pt_guided_step weights the direction and distance together. */
                 float us = rnd(rng), u1 = rnd(rng), u2 = rnd(rng);
                 const pt_medium *gm = &st->media[fl.medium];
                 guide_pick = us < PT_GUIDE_PROB;
