@@ -42,7 +42,6 @@ static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int b
 #include "methods/common/lu_sampling.h"
 #include "methods/pathtrace/lu_tracking.h"
 
-#define PT_GUIDE_PROB 0.5f /* share of guided steps in the mixture */
 
 #define PT_MAX_BOUNDED 64 /* bounded media: one bit each in a path's inside mask */
 #define PT_MAX_MEDIA 128
@@ -65,6 +64,7 @@ typedef struct pt_medium {
     lu_aabb box;        /* world box of non-zero density */
     lu_accel *inside;   /* its boundary alone, for inside tests */
     float v0[3], vlog[3]; /* constant media: Dwivedi's v0 per channel and ln((v0 + 1) / (v0 - 1)) */
+    float guide_prob;     /* share of guided steps in the mixture; 0: not guided */
 } pt_medium;
 
 enum { SURF_OPAQUE = 0, SURF_BOUNDARY };

@@ -170,7 +170,8 @@ bool lu_pt_free_flight_to_surface(const pt_state *st, lu_vec3 o, lu_vec3 d, uint
  * is one exponential per channel). */
 bool lu_pt_guide_applies(const pt_state *st, int m, uint64_t mask) {
     const pt_medium *pm = &st->media[m];
-    if (!pm->constant || pm->bit < 0 || !((st->sealed_bits >> pm->bit) & 1u)) return false;
+    if (!pm->constant || pm->bit < 0 || !((st->sealed_bits >> pm->bit) & 1u) || !(pm->guide_prob > 0.0f))
+        return false;
     for (int k = 0; k < st->medium_count; k++)
         if (k != m && medium_active(&st->media[k], mask)) return false;
     return true;
@@ -181,7 +182,7 @@ bool lu_pt_guide_applies(const pt_state *st, int m, uint64_t mask) {
  * classical, rate sigma_t of the hero channel; guided, the stretched rate
  * sigma_t (1 - mu0 / v0). The step's density under hero channel c is the
  * mixture (1 - P) phase(d) p_c(t) + P dwivedi_c(d) q_c(t | d) (P =
- * PT_GUIDE_PROB; survival probabilities when the step reaches the surface);
+ * the medium's guide_prob; survival probabilities when the step reaches the surface);
  * beta takes f / p_hero and r takes p_c / p_hero, so that, as everywhere
  * else, a contribution is f / avg_c(p_c): the balance heuristic over the
  * channels, each of them a two-technique mixture. The surface is looked for
@@ -191,7 +192,7 @@ pt_flight lu_pt_guided_step(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, lu_
     const pt_medium *pm = &st->media[m];
     const lu_medium *med = &st->scene->media[m];
     pt_flight f = {-1, -1, LU_K_FAR};
-    float mu0 = lu_v3_dot(d, n_out);
+    float mu0 = lu_v3_dot(d, n_out), pgd = pm->guide_prob;
     float sh = lu_v3_get(pm->sigma_t, hero) * pm->cdens;
     float rate = guided ? sh * (1.0f - mu0 / pm->v0[hero]) : sh;
     float t = -logf(1.0f - rnd(rng)) / rate;
@@ -207,10 +208,10 @@ pt_flight lu_pt_guided_step(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, lu_
         float tc = expf(-sc * tt), tg = expf(-rg * tt);
         float pg = lu_pt_dwivedi_pdf(pm->v0[c], pm->vlog[c], mu0);
         if (collide) {
-            pc[c] = (1.0f - PT_GUIDE_PROB) * phase * sc * tc + PT_GUIDE_PROB * pg * rg * tg;
+            pc[c] = (1.0f - pgd) * phase * sc * tc + pgd * pg * rg * tg;
             fc[c] = phase * tc * lu_v3_get(med->sigma_s, c) * pm->cdens;
         } else {
-            pc[c] = (1.0f - PT_GUIDE_PROB) * phase * tc + PT_GUIDE_PROB * pg * tg;
+            pc[c] = (1.0f - pgd) * phase * tc + pgd * pg * tg;
             fc[c] = phase * tc;
         }
     }
