@@ -94,6 +94,14 @@ float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index) {
     return v * s.w;
 }
 
+/* Le of medium m at index-space p: the GPU holds constant emission only
+ * (its record's le); grid and blackbody emission have no GPU textures, and
+ * the methods refuse them on the GPU (methods/common/gpu_scene.c). */
+vec3 lu_k_emission(LU_CTX_PARAM, int m, vec3 p_index) {
+    lu_k_medium md = lu_scene_medium(m);
+    return md.emission == 1 ? md.le : vec3(0.0f);
+}
+
 /* Majorant of block (bx, by, bz) of medium m (lu_scene_layout.h; 0 outside
  * its block grid; a constant medium: its density), the hook of
  * methods/common/lu_march_blocks.h and the tracking kernels. */

@@ -459,6 +459,8 @@ static lu_result parse_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_li
 /* "density": {"constant": v} | {"file": "x.nvdb", "grid": "density"} |
  *            {"raw": "x.raw", "dims": [nx,ny,nz], "voxel_size": h, "origin": [x,y,z]} |
  *            {"procedural": NAME, ...params} */
+static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid);
+
 static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p, lu_medium *m) {
     const cJSON *d = cJSON_GetObjectItemCaseSensitive(parent, "density");
     jpath dp = jp_key(p, "density");
@@ -471,12 +473,18 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
         return get_float(c, d, &dp, "constant", 1.0, 0.0, 1e6, true, &m->constant);
     }
     m->kind = LU_DENSITY_GRID;
+    return parse_grid_source(c, d, &dp, true, &m->grid);
+}
+
+/* A grid from one of "file", "raw", "voxelize", "procedural" in object d (at path *pp). */
+static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid) {
+    jpath dp = *pp;
     if (cJSON_HasObjectItem(d, "file")) {
         static const char *const keys[] = {"file", "grid", NULL};
         TRY(check_object(c, d, &dp, keys));
-        const char *file, *grid;
+        const char *file, *gname;
         TRY(get_string(c, d, &dp, "file", true, &file));
-        TRY(get_string(c, d, &dp, "grid", false, &grid));
+        TRY(get_string(c, d, &dp, "grid", false, &gname));
         char path[1024];
         lu_path_resolve(c->file, file, path, sizeof path);
         if (!lu_path_has_suffix(path, ".nvdb")) {
@@ -485,7 +493,7 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
                               "\"%s\" is not a .nvdb file (convert OpenVDB with nanovdb_convert; raw grids use \"raw\")",
                               file);
         }
-        return wrap_loader(c, &dp, lu_grid_load_nvdb(path, grid, &m->grid, c->err));
+        return wrap_loader(c, &dp, lu_grid_load_nvdb(path, gname, grid, c->err));
     }
     if (cJSON_HasObjectItem(d, "raw")) {
         static const char *const keys[] = {"raw", "dims", "voxel_size", "origin", NULL};
@@ -503,9 +511,9 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
         }
         char path[1024];
         lu_path_resolve(c->file, file, path, sizeof path);
-        TRY(wrap_loader(c, &dp, lu_grid_load_raw(path, (int)dims.x, (int)dims.y, (int)dims.z, &m->grid, c->err)));
+        TRY(wrap_loader(c, &dp, lu_grid_load_raw(path, (int)dims.x, (int)dims.y, (int)dims.z, grid, c->err)));
         lu_affine s = lu_affine_scale(lu_v3s(h)), t = lu_affine_translate(origin);
-        m->grid.index_to_world = lu_affine_mul(&t, &s);
+        grid->index_to_world = lu_affine_mul(&t, &s);
         return LU_OK;
     }
     if (cJSON_HasObjectItem(d, "voxelize")) {
@@ -529,13 +537,13 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
             lu_vec3 pad = lu_v3s(lu_v3_maxc(lu_v3_sub(b.hi, b.lo)) / (float)res);
             b.lo = lu_v3_sub(b.lo, pad);
             b.hi = lu_v3_add(b.hi, pad);
-            r = lu_voxelize(acc, b, res, ss, &m->grid, c->err);
+            r = lu_voxelize(acc, b, res, ss, grid, c->err);
         }
         if (acc) lu_accel_destroy(acc);
         lu_mesh_destroy(&mesh);
         if (r != LU_OK) return wrap_loader(c, &dp, r);
-        for (size_t i = 0; i < (size_t)m->grid.nx * m->grid.ny * m->grid.nz; i++) m->grid.data[i] *= value;
-        lu_grid_update_range(&m->grid);
+        for (size_t i = 0; i < (size_t)grid->nx * grid->ny * grid->nz; i++) grid->data[i] *= value;
+        lu_grid_update_range(grid);
         return LU_OK;
     }
     if (cJSON_HasObjectItem(d, "procedural")) {
@@ -546,13 +554,13 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
         if (r == LU_OK) {
             char where[300];
             snprintf(where, sizeof where, "%s: %s", c->file, dp.s);
-            r = lu_grid_procedural(name, &params, &m->grid, where, c->err);
+            r = lu_grid_procedural(name, &params, grid, where, c->err);
         }
         lu_kv_free(&params);
         return r;
     }
-    return scene_fail(c, &dp, LU_ERR_SCENE,
-                      "expected one of \"constant\", \"file\", \"raw\", \"voxelize\", \"procedural\"");
+    return scene_fail(c, &dp, LU_ERR_SCENE, "expected one of %s\"file\", \"raw\", \"voxelize\", \"procedural\"",
+                      density ? "\"constant\", " : "");
 }
 
 static void medium_finish(lu_medium *m) {
@@ -565,8 +573,65 @@ static void medium_finish(lu_medium *m) {
     m->bounds = box;
 }
 
+/* Two grids share one index space: equal dimensions and equal maps. */
+static bool same_index_space(const lu_grid *a, const lu_grid *b) {
+    if (a->nx != b->nx || a->ny != b->ny || a->nz != b->nz) return false;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++) {
+            float x = a->index_to_world.m[i][j], y = b->index_to_world.m[i][j];
+            if (fabsf(x - y) > 1e-6f * fmaxf(1.0f, fmaxf(fabsf(x), fabsf(y)))) return false;
+        }
+    return true;
+}
+
+/* "emission": {"color": c, "scale": s} (constant Le) | {..., "grid": SOURCE} |
+ *             {..., "temperature": SOURCE, "temperature_scale": k, "temperature_offset": t0}
+ * SOURCE as a grid density (parse_grid_source), in the density's index space. */
+static lu_result parse_emission(parse_ctx *c, const cJSON *o, const jpath *p, lu_medium *m) {
+    const cJSON *e = cJSON_GetObjectItemCaseSensitive(o, "emission");
+    if (!e) return LU_OK;
+    jpath ep = jp_key(p, "emission");
+    static const char *const keys[] = {"color", "scale", "grid", "temperature", "temperature_scale",
+                                       "temperature_offset", NULL};
+    TRY(check_object(c, e, &ep, keys));
+    TRY(get_vec3(c, e, &ep, "color", lu_v3s(1), 0, 1e6, false, true, &m->le_color));
+    TRY(get_float(c, e, &ep, "scale", 1.0, 0.0, 1e9, false, &m->le_scale));
+    const cJSON *g = cJSON_GetObjectItemCaseSensitive(e, "grid");
+    const cJSON *t = cJSON_GetObjectItemCaseSensitive(e, "temperature");
+    if (g && t) return scene_fail(c, &ep, LU_ERR_SCENE, "give \"grid\" or \"temperature\", not both");
+    bool blackbody = t != NULL;
+    if (!blackbody && (cJSON_HasObjectItem(e, "temperature_scale") || cJSON_HasObjectItem(e, "temperature_offset")))
+        return scene_fail(c, &ep, LU_ERR_SCENE, "\"temperature_scale\" and \"temperature_offset\" need a \"temperature\" grid");
+    TRY(get_float(c, e, &ep, "temperature_scale", 1.0, 0.0, 1e9, false, &m->temp_scale));
+    TRY(get_float(c, e, &ep, "temperature_offset", 0.0, -1e9, 1e9, false, &m->temp_offset));
+    if (!g && !t) {
+        m->emission = LU_EMISSION_CONSTANT;
+        return LU_OK;
+    }
+    jpath gp = jp_key(&ep, blackbody ? "temperature" : "grid");
+    if (m->kind != LU_DENSITY_GRID)
+        return scene_fail(c, &gp, LU_ERR_SCENE,
+                          "a constant density has no index space for an emission grid (use a grid density, or a "
+                          "constant emission)");
+    if (!cJSON_IsObject(blackbody ? t : g)) return scene_fail(c, &gp, LU_ERR_SCENE, "expected an object");
+    m->emission = blackbody ? LU_EMISSION_BLACKBODY : LU_EMISSION_GRID;
+    TRY(parse_grid_source(c, blackbody ? t : g, &gp, false, &m->emission_grid));
+    if (!same_index_space(&m->grid, &m->emission_grid)) {
+        const lu_affine *a = &m->grid.index_to_world, *b = &m->emission_grid.index_to_world;
+        return scene_fail(c, &gp, LU_ERR_SCENE,
+                          "this grid is %dx%dx%d with voxel (%g, %g, %g) at (%g, %g, %g), the density grid %dx%dx%d with "
+                          "voxel (%g, %g, %g) at (%g, %g, %g): the two must share one index space",
+                          m->emission_grid.nx, m->emission_grid.ny, m->emission_grid.nz, (double)b->m[0][0],
+                          (double)b->m[1][1], (double)b->m[2][2], (double)b->m[0][3], (double)b->m[1][3],
+                          (double)b->m[2][3], m->grid.nx, m->grid.ny, m->grid.nz, (double)a->m[0][0],
+                          (double)a->m[1][1], (double)a->m[2][2], (double)a->m[0][3], (double)a->m[1][3],
+                          (double)a->m[2][3]);
+    }
+    return LU_OK;
+}
+
 static lu_result parse_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_medium *m) {
-    static const char *const keys[] = {"density", "sigma_s", "sigma_a", "phase_g", "transform", "boundary", NULL};
+    static const char *const keys[] = {"density", "sigma_s", "sigma_a", "phase_g", "transform", "boundary", "emission", NULL};
     TRY(check_object(c, o, p, keys));
     m->from_object = -1;
     m->eta = 1.0f;
@@ -575,6 +640,7 @@ static lu_result parse_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_m
     TRY(get_vec3(c, o, p, "sigma_s", lu_v3s(1), 0, 1e6, true, true, &m->sigma_s));
     TRY(get_vec3(c, o, p, "sigma_a", lu_v3s(0), 0, 1e6, false, true, &m->sigma_a));
     TRY(get_float(c, o, p, "phase_g", 0.0, -0.99, 0.99, false, &m->phase_g));
+    TRY(parse_emission(c, o, p, m));
     lu_affine xf;
     TRY(parse_transform(c, o, p, &xf));
     m->index_to_world = m->kind == LU_DENSITY_GRID ? lu_affine_mul(&xf, &m->grid.index_to_world) : xf;

@@ -45,6 +45,8 @@ lu_k_medium lu_medium_to_kernel(const lu_medium *m) {
     k.constant = grid ? 0 : 1;
     k.bounded = m->has_boundary ? 1 : 0;
     k.max_pieces = grid ? m->grid.nx + m->grid.ny + m->grid.nz + 8 : 1;
+    k.emission = (int)m->emission;
+    k.le = m->emission != LU_EMISSION_NONE ? lu_v3_scale(m->le_color, m->le_scale) : lu_v3s(0.0f);
     return k;
 }
 
@@ -142,6 +144,12 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
     if (scene->medium_count > LU_SCENE_MAX_MEDIA)
         return lu_fail(err, LU_ERR_LIMIT, "gpu scene: %d media, the GPU backend takes at most %d",
                        scene->medium_count, LU_SCENE_MAX_MEDIA);
+    for (int m = 0; m < scene->medium_count; m++)
+        if (scene->media[m].emission == LU_EMISSION_GRID || scene->media[m].emission == LU_EMISSION_BLACKBODY)
+            return lu_fail(err, LU_ERR_UNSUPPORTED,
+                           "gpu scene: medium %d has %s emission, which the GPU backend does not hold (it takes "
+                           "constant emission only); render it with --backend cpu",
+                           m, scene->media[m].emission == LU_EMISSION_GRID ? "grid" : "temperature");
     lu_gpu_scene *gs = calloc(1, sizeof *gs);
     if (!gs) return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
     gs->ctx = ctx;
