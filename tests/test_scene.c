@@ -75,6 +75,66 @@ static void test_strict_errors(void) {
     expect_error("{\n  \"camera\": {\n    \"position\": [0, 0, 5],,\n  }\n}", LU_ERR_FORMAT, "bad.json:3:", "syntax");
 }
 
+/* Emission keys under a medium: malformed input names the key, and a loaded
+ * emission has the documented kind, defaults and grid. */
+#define GRID_MEDIUM(EMISSION)                                                                                          \
+    "{" CAMERA ", \"media\": [{\"density\": {\"procedural\": \"sphere\", \"resolution\": 8}, \"sigma_s\": 1" EMISSION "}]}"
+static void test_emission_keys(void) {
+    expect_error(GRID_MEDIUM(", \"emission\": {\"colour\": 1}"), LU_ERR_SCENE, "$.media[0].emission.colour",
+                 "unknown key");
+    expect_error(GRID_MEDIUM(", \"emission\": 3"), LU_ERR_SCENE, "$.media[0].emission", "object");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"scale\": -1}"), LU_ERR_RANGE, "$.media[0].emission.scale", NULL);
+    expect_error(GRID_MEDIUM(", \"emission\": {\"color\": [1, 2]}"), LU_ERR_SCENE, "$.media[0].emission.color",
+                 NULL);
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature_scale\": 2}"), LU_ERR_SCENE, "$.media[0].emission",
+                 "need a \"temperature\"");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"grid\": {\"procedural\": \"sphere\", \"resolution\": 8},"
+                             " \"temperature\": {\"procedural\": \"sphere\", \"resolution\": 8}}"),
+                 LU_ERR_SCENE, "$.media[0].emission", "not both");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature\": {\"constant\": 1500}}"), LU_ERR_SCENE,
+                 "$.media[0].emission.temperature", "\"file\", \"raw\"");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature\": [1]}"), LU_ERR_SCENE,
+                 "$.media[0].emission.temperature", "object");
+    /* Another index space: other resolution, other box. */
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature\": {\"procedural\": \"sphere\", \"resolution\": 9}}"),
+                 LU_ERR_SCENE, "$.media[0].emission.temperature", "share one index space");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"grid\": {\"procedural\": \"sphere\", \"resolution\": 8,"
+                             " \"center\": [0.5, 0, 0]}}"),
+                 LU_ERR_SCENE, "$.media[0].emission.grid", "share one index space");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature\": {\"file\": \"missing_t.nvdb\"}}"), LU_ERR_IO,
+                 "$.media[0].emission.temperature", "missing_t.nvdb");
+    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": 1,"
+                 " \"boundary\": {\"mesh\": {\"procedural\": \"box\"}},"
+                 " \"emission\": {\"grid\": {\"procedural\": \"sphere\", \"resolution\": 8}}}]}",
+                 LU_ERR_SCENE, "$.media[0].emission.grid", "constant density");
+
+    lu_scene s;
+    lu_error err = {0};
+    CHECK_OK(lu_scene_load_string(GRID_MEDIUM(", \"emission\": {\"temperature\": {\"procedural\": \"sphere\","
+                                              " \"resolution\": 8, \"value\": 2}, \"temperature_scale\": 1000,"
+                                              " \"temperature_offset\": 0.5, \"color\": [1, 0.5, 0.25]}"),
+                                  "ok.json", &s, &err),
+             &err);
+    if (err.code != LU_OK) return;
+    const lu_medium *m = &s.media[0];
+    CHECK(m->emission == LU_EMISSION_BLACKBODY);
+    CHECK(m->le_scale == 1.0f && m->temp_scale == 1000.0f && m->temp_offset == 0.5f && m->le_color.y == 0.5f);
+    /* At the sphere's centre the temperature grid holds 2: T' = (2 - 0.5) * 1000. */
+    lu_vec3 c = lu_v3(3.5f, 3.5f, 3.5f);
+    float t = lu_grid_sample(&m->emission_grid, c);
+    CHECK_NEAR(t, 2.0, 1e-6);
+    lu_vec3 le = lu_medium_emission(m, c), bb = lu_blackbody_rgb(1500.0f);
+    CHECK_REL(le.x, bb.x, 1e-6);
+    CHECK_REL(le.y, 0.5 * bb.y, 1e-6);
+    CHECK_REL(le.z, 0.25 * bb.z, 1e-6);
+    lu_scene_destroy(&s);
+    CHECK_OK(lu_scene_load_string(GRID_MEDIUM(", \"emission\": {}"), "ok.json", &s, &err), &err);
+    if (err.code != LU_OK) return;
+    CHECK(s.media[0].emission == LU_EMISSION_CONSTANT);
+    CHECK(lu_medium_emission(&s.media[0], lu_v3s(0.0f)).x == 1.0f);
+    lu_scene_destroy(&s);
+}
+
 static void test_transform_and_translucent(void) {
     const char *json = "{" CAMERA ", \"objects\": ["
                        " {\"mesh\": {\"procedural\": \"box\", \"size\": [2, 2, 2]},"
@@ -149,6 +209,7 @@ static void test_bundled_scenes_load(void) {
 
 int main(void) {
     RUN_TEST(test_strict_errors);
+    RUN_TEST(test_emission_keys);
     RUN_TEST(test_transform_and_translucent);
     RUN_TEST(test_grid_transform);
     RUN_TEST(test_bundled_scenes_load);
