@@ -9,6 +9,8 @@
  *     for reference, pathtrace (max_depth 1, noise bound from the pixels'
  *     spread), every march method on the CPU, and on the GPU (= CPU and =
  *     the closed form);
+ *   - early termination drops emission behind an opaque-looking slab within
+ *     the stated bound t_cut (sigma_a / sigma_t) Le;
  *   - reference = pathtrace (max_depth 1) on a heterogeneous temperature
  *     medium (hotter where denser) under a light, within the bound of pathtrace's own noise
  *     (estimated from two seeds);
@@ -216,6 +218,42 @@ static void test_slab_march_methods(void) {
     }
 }
 
+/* Early termination with emission: an absorbing slab (optical depth 7,
+ * transmittance 9.1e-4) in front of an emissive one. With t_cut = 1e-3 the
+ * march stops inside the front slab and drops exactly the back slab's
+ * T_front * Le sigma_a / sigma_t (1 - exp(-sigma_t d)); the bound the march
+ * states is t_cut * (sigma_a / sigma_t) Le. With t_cut = 0 nothing is dropped.
+ * The march's steps (union box diagonal / steps) do not end on the slabs'
+ * faces: a step across a face takes its midpoint's density, so each face
+ * moves the optical depth by at most sigma h / 2, the march's own error. */
+static void test_cut_with_emission(void) {
+    const char *json =
+        "{\"camera\": {\"position\": [0, 3, 0.0001], \"look_at\": [0, 0, 0], \"fov_y_deg\": 1,"
+        " \"width\": 3, \"height\": 3},"
+        " \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": 0, \"sigma_a\": 7,"
+        "   \"transform\": {\"translate\": [0, 1, 0]},"
+        "   \"boundary\": {\"mesh\": {\"procedural\": \"box\", \"size\": [40, 1, 40]}, \"eta\": 1.0}},"
+        "  {\"density\": {\"constant\": 1}, \"sigma_s\": 0.5, \"sigma_a\": 1.5, \"emission\": {\"scale\": 200},"
+        "   \"transform\": {\"translate\": [0, -1, 0]},"
+        "   \"boundary\": {\"mesh\": {\"procedural\": \"box\", \"size\": [40, 1, 40]}, \"eta\": 1.0}}]}";
+    const double le_src = 200.0 * 1.5 / 2.0, back = le_src * (1.0 - exp(-2.0)), front_t = exp(-7.0);
+    lu_image full, cut;
+    lu_error err = {0};
+    CHECK_OK(render(json, "raymarch", LU_BACKEND_CPU, "raymarch.t_cut=0 raymarch.steps=16384", &full, &err), &err);
+    if (err.code != LU_OK) return;
+    CHECK_OK(render(json, "raymarch", LU_BACKEND_CPU, "raymarch.t_cut=0.001 raymarch.steps=16384", &cut, &err), &err);
+    if (err.code != LU_OK) return;
+    double f = lu_image_px(&full, 1, 1)[0], c = lu_image_px(&cut, 1, 1)[0], dropped = f - c;
+    fprintf(stderr, "  cut: full %.6g (closed form %.6g), cut %.6g, dropped %.6g, bound %.6g\n", f, front_t * back, c,
+            dropped, 1e-3 * le_src);
+    double h = sqrt(40.0 * 40.0 * 2 + 3.0 * 3.0) / 16384.0;
+    CHECK_REL(f, front_t * back, expm1((7.0 + 2.0) * h));
+    CHECK_NEAR(c, 0.0, 1e-9);
+    CHECK_MSG(dropped <= 1e-3 * le_src, "dropped %.6g > bound %.6g", dropped, 1e-3 * le_src);
+    lu_image_destroy(&full);
+    lu_image_destroy(&cut);
+}
+
 /* A heterogeneous medium with temperature: Gaussian blobs of density and of
  * temperature (other seed, same box and resolution: one index space), and a
  * directional light, so single scattering and emission both count. */
@@ -305,6 +343,7 @@ int main(void) {
     RUN_TEST(test_slab_reference);
     RUN_TEST(test_slab_pathtrace);
     RUN_TEST(test_slab_march_methods);
+    RUN_TEST(test_cut_with_emission);
     RUN_TEST(test_reference_equals_pathtrace);
     RUN_TEST(test_refusals);
     TEST_EXIT();
