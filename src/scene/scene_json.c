@@ -576,15 +576,49 @@ static void medium_finish(lu_medium *m) {
     m->bounds = box;
 }
 
-/* Two grids share one index space: equal dimensions and equal maps. */
-static bool same_index_space(const lu_grid *a, const lu_grid *b) {
-    if (a->nx != b->nx || a->ny != b->ny || a->nz != b->nz) return false;
+static bool close_to(float x, float y, float scale) { return fabsf(x - y) <= 1e-5f * fmaxf(scale, fmaxf(fabsf(x), fabsf(y))); }
+
+/* Whether grid e lies in the index space of grid d: the same linear map,
+ * and e's voxel 0 at an integer voxel k of d (a NanoVDB grid is loaded
+ * over the box of its own active voxels, so two grids of one file share
+ * their index space up to such an offset). */
+static bool shared_index_space(const lu_grid *d, const lu_grid *e, int k[3]) {
+    const lu_affine *a = &d->index_to_world, *b = &e->index_to_world;
+    float scale = 0.0f;
     for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 4; j++) {
-            float x = a->index_to_world.m[i][j], y = b->index_to_world.m[i][j];
-            if (fabsf(x - y) > 1e-6f * fmaxf(1.0f, fmaxf(fabsf(x), fabsf(y)))) return false;
-        }
+        for (int j = 0; j < 3; j++) scale = fmaxf(scale, fabsf(a->m[i][j]));
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (!close_to(a->m[i][j], b->m[i][j], scale)) return false;
+    lu_affine inv;
+    if (!lu_affine_invert(a, &inv)) return false;
+    lu_vec3 o = lu_affine_point(&inv, lu_v3(b->m[0][3], b->m[1][3], b->m[2][3]));
+    for (int i = 0; i < 3; i++) {
+        float v = lu_v3_get(o, i), r = roundf(v);
+        if (fabsf(v - r) > 1e-3f) return false;
+        k[i] = (int)r;
+    }
     return true;
+}
+
+/* e re-embedded over d's voxels: e'(i) = e(i - k), 0 outside e. Values of e
+ * outside d's box are dropped: the density is 0 there, and emission is
+ * weighted by density. */
+static lu_result embed_grid(parse_ctx *c, const jpath *p, const lu_grid *d, lu_grid *e, const int k[3]) {
+    if (k[0] == 0 && k[1] == 0 && k[2] == 0 && e->nx == d->nx && e->ny == d->ny && e->nz == d->nz) return LU_OK;
+    lu_grid g = {0};
+    lu_result r = lu_grid_alloc(&g, d->nx, d->ny, d->nz, c->err);
+    if (r != LU_OK) return scene_fail(c, p, r, "%s", c->err->message);
+    for (int z = 0; z < d->nz; z++)
+        for (int y = 0; y < d->ny; y++)
+            for (int x = 0; x < d->nx; x++)
+                g.data[((size_t)z * d->ny + y) * d->nx + x] = lu_grid_at(e, x - k[0], y - k[1], z - k[2]);
+    g.index_to_world = d->index_to_world;
+    memcpy(g.name, e->name, sizeof g.name);
+    lu_grid_update_range(&g);
+    lu_grid_destroy(e);
+    *e = g;
+    return LU_OK;
 }
 
 /* "emission": {"color": c, "scale": s} (constant Le) | {..., "grid": SOURCE} |
@@ -619,18 +653,20 @@ static lu_result parse_emission(parse_ctx *c, const cJSON *o, const jpath *p, lu
     if (!cJSON_IsObject(blackbody ? t : g)) return scene_fail(c, &gp, LU_ERR_SCENE, "expected an object");
     m->emission = blackbody ? LU_EMISSION_BLACKBODY : LU_EMISSION_GRID;
     TRY(parse_grid_source(c, blackbody ? t : g, &gp, false, &m->emission_grid));
-    if (!same_index_space(&m->grid, &m->emission_grid)) {
+    int k[3];
+    if (!shared_index_space(&m->grid, &m->emission_grid, k)) {
         const lu_affine *a = &m->grid.index_to_world, *b = &m->emission_grid.index_to_world;
         return scene_fail(c, &gp, LU_ERR_SCENE,
                           "this grid is %dx%dx%d with voxel (%g, %g, %g) at (%g, %g, %g), the density grid %dx%dx%d with "
-                          "voxel (%g, %g, %g) at (%g, %g, %g): the two must share one index space",
+                          "voxel (%g, %g, %g) at (%g, %g, %g): the two must share one index space (the same voxels, "
+                          "offset by whole voxels at most)",
                           m->emission_grid.nx, m->emission_grid.ny, m->emission_grid.nz, (double)b->m[0][0],
                           (double)b->m[1][1], (double)b->m[2][2], (double)b->m[0][3], (double)b->m[1][3],
                           (double)b->m[2][3], m->grid.nx, m->grid.ny, m->grid.nz, (double)a->m[0][0],
                           (double)a->m[1][1], (double)a->m[2][2], (double)a->m[0][3], (double)a->m[1][3],
                           (double)a->m[2][3]);
     }
-    return LU_OK;
+    return embed_grid(c, &gp, &m->grid, &m->emission_grid, k);
 }
 
 static lu_result parse_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_medium *m) {
