@@ -107,19 +107,7 @@ static void test_every_scene_every_gpu_method(void) {
             } else {
                 CHECK_MSG(rc == LU_OK, "%s on %s (cpu): %s", method, scenes[i], err.message);
                 lu_result rg = rc == LU_OK ? render(method, &s, LU_BACKEND_GPU, &gpu, &err) : rc;
-                /* Grid and temperature emission have no GPU textures: the GPU
-                 * refuses them (LU_ERR_UNSUPPORTED), and only them. */
-                bool grid_emission = false;
-                for (int m = 0; m < s.medium_count; m++)
-                    grid_emission |= s.media[m].emission == LU_EMISSION_GRID || s.media[m].emission == LU_EMISSION_BLACKBODY;
-                if (rc == LU_OK && grid_emission) {
-                    CHECK_MSG(rg == LU_ERR_UNSUPPORTED, "%s on %s (gpu): grid emission not refused", method, scenes[i]);
-                    fprintf(stderr, "  %-9s %-26s gpu skipped: %s\n", method, scenes[i], err.message);
-                    if (rg == LU_OK) lu_image_destroy(&gpu);
-                    rg = LU_ERR_UNSUPPORTED;
-                } else {
-                    CHECK_MSG(rc != LU_OK || rg == LU_OK, "%s on %s (gpu): %s", method, scenes[i], err.message);
-                }
+                CHECK_MSG(rc != LU_OK || rg == LU_OK, "%s on %s (gpu): %s", method, scenes[i], err.message);
                 if (rc == LU_OK && rg == LU_OK) {
                     double ref = sum_squares(&cpu);
                     lu_metrics m = {0};

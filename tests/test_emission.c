@@ -14,8 +14,8 @@
  *   - reference = pathtrace (max_depth 1) on a heterogeneous temperature
  *     medium (hotter where denser) under a light, within the bound of pathtrace's own noise
  *     (estimated from two seeds);
- *   - ddod and bssrdf refuse emissive media; the GPU refuses temperature
- *     emission, naming the medium. */
+ *   - temperature emission on the GPU = the CPU, every march method;
+ *   - ddod and bssrdf refuse emissive media, naming the medium. */
 #include <lucent/lucent.h>
 
 #include <math.h>
@@ -329,12 +329,27 @@ static void test_refusals(void) {
                   err.message);
         if (r == LU_OK) lu_image_destroy(&img);
     }
-    /* Temperature emission on the GPU: refused, naming the medium. */
-    lu_image img;
-    lu_error err = {0};
-    lu_result r = render(k_hot, "raymarch", LU_BACKEND_GPU, "", &img, &err);
-    CHECK_MSG(r == LU_ERR_UNSUPPORTED && strstr(err.message, "medium 0"), "gpu: %d (%s)", (int)r, err.message);
-    if (r == LU_OK) lu_image_destroy(&img);
+}
+
+/* Temperature emission on the GPU: the grid and the blackbody table from the
+ * scene buffer, GPU = CPU for every march method. */
+static void test_temperature_gpu(void) {
+    for (size_t k = 0; k < sizeof k_march / sizeof k_march[0]; k++) {
+        lu_image cpu, gpu;
+        lu_error err = {0};
+        CHECK_OK(render(k_hot, k_march[k], LU_BACKEND_CPU, "", &cpu, &err), &err);
+        if (err.code != LU_OK) continue;
+        CHECK_OK(render(k_hot, k_march[k], LU_BACKEND_GPU, "", &gpu, &err), &err);
+        if (err.code == LU_OK) {
+            lu_metrics m = {0};
+            CHECK_OK(lu_image_compare(&gpu, &cpu, &m, &err), &err);
+            fprintf(stderr, "  %-9s temperature: GPU vs CPU rel-L2 %.2e\n", k_march[k], m.rel_l2);
+            /* the suite's GPU = CPU bound (tests/test_cross_backend.c) */
+            CHECK_MSG(m.rel_l2 <= 1e-3, "%s: GPU vs CPU rel-L2 %.3g", k_march[k], m.rel_l2);
+            lu_image_destroy(&gpu);
+        }
+        lu_image_destroy(&cpu);
+    }
 }
 
 int main(void) {
@@ -346,5 +361,6 @@ int main(void) {
     RUN_TEST(test_cut_with_emission);
     RUN_TEST(test_reference_equals_pathtrace);
     RUN_TEST(test_refusals);
+    RUN_TEST(test_temperature_gpu);
     TEST_EXIT();
 }

@@ -54,6 +54,15 @@
  * from LU_SCENE_MAJORANT_DATA. */
 #define LU_SCENE_MAJORANT_BLOCK 8
 #define LU_SCENE_MAJORANT_HEADER (LU_SCENE_MAX_MEDIA * LU_SCENE_MEDIUM_VEC4)
-#define LU_SCENE_MAJORANT_DATA (LU_SCENE_MAJORANT_HEADER + LU_SCENE_MAX_MEDIA)
+/* Then two vec4 per medium for grid and temperature emission
+ * (include/lucent/scene.h) at LU_SCENE_EMISSION_HEADER + 2 m: (nx, ny, nz,
+ * offset of its first value) and (temperature_scale, temperature_offset,
+ * offset of the blackbody table, 0). The emission values (x fastest) and the
+ * table (LU_SCENE_BLACKBODY_N linear sRGB triples, the nodes of
+ * lu_blackbody_rgb) follow the majorant values in the same data region;
+ * every offset counts floats from LU_SCENE_MAJORANT_DATA. */
+#define LU_SCENE_EMISSION_HEADER (LU_SCENE_MAJORANT_HEADER + LU_SCENE_MAX_MEDIA)
+#define LU_SCENE_BLACKBODY_N 2048
+#define LU_SCENE_MAJORANT_DATA (LU_SCENE_EMISSION_HEADER + 2 * LU_SCENE_MAX_MEDIA)
 
 #endif

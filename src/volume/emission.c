@@ -4,6 +4,10 @@
 
 #include <math.h>
 #include <pthread.h>
+#include <string.h>
+
+#include "kernels/lu_scene_layout.h"
+#include "volume/grid_internal.h"
 
 /* CIE 1931 2-degree colour matching functions, the multi-lobe piecewise
  * Gaussian fit of Wyman, Sloan and Shirley 2013 ("Simple Analytic
@@ -63,7 +67,7 @@ lu_vec3 lu_blackbody_rgb_exact(double kelvin) {
  * (tests/test_emission.c checks it against an independent quadrature). A
  * channel that is 0 at either node (clamped out of gamut, or below float
  * range) is interpolated linearly. */
-#define BB_N 2048
+#define BB_N LU_SCENE_BLACKBODY_N
 #define BB_LO 100.0
 #define BB_HI 100000.0
 static float bb_val[BB_N][3], bb_log[BB_N][3];
@@ -93,6 +97,11 @@ lu_vec3 lu_blackbody_rgb(float kelvin) {
                                        : a + f * (b - a);
     }
     return lu_v3(out[0], out[1], out[2]);
+}
+
+void lu_blackbody_table(float *rgb) {
+    pthread_once(&bb_once, bb_build);
+    memcpy(rgb, bb_val, sizeof bb_val);
 }
 
 lu_vec3 lu_medium_emission(const lu_medium *m, lu_vec3 p) {
