@@ -131,8 +131,7 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
     for (int c = 0; c < 3; c++) {
         float s = lu_v3_get(k.sigma_tr, c), l = lu_v3_get(k.l, c);
         burley_a[c] = lu_k_dipole_total1(s, lu_v3_get(k.alpha_p, c), l, lu_v3_get(k.zb_top, c));
-        float ell = s > 1e-3f / l ? 1.0f / s : 1e3f * l;
-        burley_h[c] = ell / lu_k_burley_shape(burley_a[c]);
+        burley_h[c] = lu_k_burley_h(burley_a[c], l);
     }
     double dr = prof.r_max / o->bins;
     if (o->mc > 0) {

@@ -25,6 +25,7 @@
 #include "methods/bssrdf/bssrdf_profile.h"
 #include "methods/bssrdf/bssrdf_sampling.h"
 #include "methods/bssrdf/lu_diffusion.h"
+#include "methods/bssrdf/profile_mc.h"
 
 /* ---- independent formulas (double precision) ------------------------------------ */
 
@@ -63,6 +64,18 @@ static double fresnel_r(double cos_i, double eta) {
     double ct = sqrt(1.0 - s2);
     double rs = (c - eta * ct) / (c + eta * ct), rp = (eta * c - ct) / (eta * c + ct);
     return 0.5 * (rs * rs + rp * rp);
+}
+
+/* What the exit term F_t(eta, w_o) / pi lets out over the hemisphere:
+ * 2 int_0^1 F_t(mu) mu dmu = 1 - F_dr,ext (32-node Gauss-Legendre). */
+static double exit_fraction(double eta) {
+    double gx[32], gw[32], sum = 0.0;
+    lu_test_gauss_legendre(32, gx, gw);
+    for (int i = 0; i < 32; i++) {
+        double mu = 0.5 * (1.0 + gx[i]);
+        sum += 0.5 * gw[i] * 2.0 * (1.0 - fresnel_r(mu, eta)) * mu;
+    }
+    return sum;
 }
 
 /* int_a^b f(r) dr by composite 32-node Gauss-Legendre on `panels` pieces,
@@ -138,6 +151,151 @@ static void test_dipole_profile_and_total(void) {
         }
         lu_bssrdf_profile_destroy(&prof);
     }
+}
+
+static bool ok_(lu_result r, const lu_error *e) {
+    CHECK_OK(r, e);
+    return r == LU_OK;
+}
+
+/* Power of a 1D profile table in the annulus [r0, r1]: 2 pi r P(r) by
+ * Gauss-Legendre in x = sqrt(r / r_max), the variable the table is linear in. */
+static double table_annulus(const lu_bssrdf_profile *p, int ch, double r0, double r1) {
+    static double gx[32], gw[32];
+    static int ready = 0;
+    if (!ready) {
+        lu_test_gauss_legendre(32, gx, gw);
+        ready = 1;
+    }
+    double x0 = sqrt(r0 / p->r_max), x1 = sqrt(fmin(r1, p->r_max) / p->r_max), sum = 0.0;
+    for (int i = 0; i < 32 && x1 > x0; i++) {
+        double x = 0.5 * (x0 + x1) + 0.5 * (x1 - x0) * gx[i], r = p->r_max * x * x;
+        sum += 0.5 * (x1 - x0) * gw[i] * 2.0 * M_PI * r * lu_v3_get(lu_bssrdf_profile_eval(p, (float)r, 0.0f, 0), ch) *
+               2.0 * p->r_max * x;
+    }
+    return sum;
+}
+
+/* Christensen-Burley's fit s = 1.85 - A + 7 |A - 0.8|^3 with the volume mean
+ * free path (their perpendicular-illumination case, published mean relative
+ * error 5.5 % against Monte Carlo) in the set-up it was fitted in: a pencil
+ * beam entering an index-matched half-space with isotropic scattering,
+ * everything that leaves counted (single scattering included). The measure is
+ * the energy-weighted mean over radial bins of |model - walk| / walk, i.e.
+ * E = sum |M_b - W_b| / sum W_b on bin powers over [0, r_max); its noise
+ * sigma_E comes from the walk's per-bin standard errors, with
+ * dE/dW_b = -(sgn(M_b - W_b) + E) / sum W.
+ * On this measure even the best shape length h of the two-exponential form
+ * (found here by search against the walk, same albedo) is 8-11 % off for
+ * albedos near 0.9, so the fit is held to that best plus the published mean
+ * error; the wrong pairing (h from 1/sigma_tr) is 7-16 times too wide and
+ * far outside it. */
+static double burley_bins_error(const double *W, double tot, int n, double dr, double a, double h) {
+    double num = 0.0;
+    for (int b = 0; b < n; b++) {
+        double c0 = 1.0 - 0.25 * exp(-b * dr / h) - 0.75 * exp(-b * dr / (3.0 * h));
+        double c1 = 1.0 - 0.25 * exp(-(b + 1) * dr / h) - 0.75 * exp(-(b + 1) * dr / (3.0 * h));
+        num += fabs(a * (c1 - c0) - W[b]);
+    }
+    return num / tot;
+}
+
+static void test_burley_vs_walk(void) {
+    static const char *const names[] = {"marble", "skin1", "ketchup", "apple", "wholemilk"};
+    enum { BINS = 48 };
+    lu_bssrdf_profile_desc desc;
+    lu_bssrdf_profile_desc_default(&desc);
+    desc.model = LU_BSSRDF_BURLEY;
+    double worst = 0.0, sum_e = 0.0;
+    int n_e = 0;
+    for (int k = 0; k < 5; k++) {
+        const lu_material_preset *p = lu_material_preset_find(names[k]);
+        CHECK(p != NULL);
+        if (!p) continue;
+        lu_bssrdf_layer layer = {lu_v3(p->sigma_s_prime[0], p->sigma_s_prime[1], p->sigma_s_prime[2]),
+                                 lu_v3(p->sigma_a[0], p->sigma_a[1], p->sigma_a[2]), 1.0f, 0.0f};
+        lu_bssrdf_profile prof;
+        lu_error err;
+        if (!ok_(lu_bssrdf_profile_build(&layer, 1, &desc, &prof, &err), &err)) continue;
+        for (int c = 0; c < 3; c++) {
+            /* Bins over this channel's own 99 % radius of the walk would need
+             * the walk first; the profile's shared r_max is a superset. */
+            double dr = prof.r_max / BINS;
+            lu_bssrdf_mc_result mc;
+            if (!ok_(lu_bssrdf_mc_slab(p->sigma_s_prime[c], p->sigma_a[c], 1.0, INFINITY, 60000, 7 + c, BINS + 1,
+                                              dr, &mc, &err),
+                            &err))
+                continue;
+            double M[BINS], W[BINS], S[BINS], tot = 0.0, num = 0.0;
+            for (int b = 0; b < BINS; b++) {
+                double area = M_PI * dr * dr * ((b + 1.0) * (b + 1.0) - (double)b * b);
+                M[b] = table_annulus(&prof, c, b * dr, (b + 1) * dr);
+                W[b] = mc.r_profile[b] * area;
+                S[b] = mc.r_profile_stderr[b] * area;
+                tot += W[b];
+                num += fabs(M[b] - W[b]);
+            }
+            double e = num / tot, var = 0.0;
+            for (int b = 0; b < BINS; b++) {
+                double g = ((M[b] >= W[b] ? 1.0 : -1.0) + e) / tot;
+                var += g * g * S[b] * S[b];
+            }
+            double l = 1.0 / (p->sigma_s_prime[c] + p->sigma_a[c]), best = INFINITY, h_best = l;
+            for (int q = -300; q <= 300; q++) {
+                double h = l * exp(0.01 * q), eq = burley_bins_error(W, tot, BINS, dr, prof.total_closed[c], h);
+                if (eq < best) best = eq, h_best = h;
+            }
+            double bound = best + 0.055 + 3.0 * sqrt(var);
+            fprintf(stderr,
+                    "  burley %-7s ch %d: A %.3f, mean rel. error %.2f %% (sigma %.2f %%), best h %.2f %% at h/l %.2f (fit %.2f)\n",
+                    names[k], c, prof.total_closed[c], 100 * e, 100 * sqrt(var), 100 * best, h_best / l,
+                    lu_k_burley_h((float)prof.total_closed[c], (float)l) / l);
+            CHECK_MSG(e <= bound, "%s ch %d: %.4f > %.4f", names[k], c, e, bound);
+            sum_e += e;
+            n_e++;
+            worst = fmax(worst, e);
+            lu_bssrdf_mc_destroy(&mc);
+        }
+        lu_bssrdf_profile_destroy(&prof);
+    }
+    fprintf(stderr, "  burley: worst channel %.2f %%, mean over channels %.2f %%\n", 100 * worst, 100 * sum_e / n_e);
+}
+
+/* White furnace: a non-absorbing half-space behind a smooth dielectric lets
+ * out everything that enters. The random walk with the same boundary
+ * (Fresnel split at every internal hit) measures that fraction, 1 less the
+ * weight of the walks it drops past 10^6 events (which it reports); the model
+ * must return the same:
+ * the dipole's total is alpha' = 1, and the exit term with the renderer's
+ * normalisation (the material record's pi / k_0, k_0 = 2 pi int F_t mu dmu)
+ * must integrate to 1 over the hemisphere (here by the test's own quadrature;
+ * without it, 1 - F_dr,ext = 0.94 at eta 1.3). */
+static void test_white_furnace(void) {
+    static const double etas[3] = {1.0, 1.3, 1.5};
+    for (int i = 0; i < 3; i++) {
+        double k[3];
+        lu_bssrdf_sh_kernel((float)etas[i], k);
+        double norm = (float)(M_PI / k[0]);   /* as bssrdf.c stores it */
+        double out = exit_fraction(etas[i]) * norm;
+        fprintf(stderr, "  eta %.1f: exit term lets out %.6f unnormalised, %.6f normalised\n", etas[i],
+                exit_fraction(etas[i]), out);
+        CHECK_NEAR(out, 1.0, 1e-5);
+    }
+    lu_bssrdf_mc_result mc;
+    lu_error err;
+    if (!ok_(lu_bssrdf_mc_slab(1.0, 0.0, 1.3, INFINITY, 40000, 3, 4, 1.0, &mc, &err), &err)) return;
+    fprintf(stderr, "  walk, non-absorbing, eta 1.3: %.5f +- %.1e leaves, %.1e dropped at the event cap\n", mc.r_total,
+            mc.r_stderr, mc.dropped);
+    CHECK(mc.r_total <= 1.0 + 3.0 * mc.r_stderr);
+    CHECK(mc.r_total + mc.dropped >= 1.0 - 3.0 * mc.r_stderr);
+    lu_bssrdf_mc_destroy(&mc);
+    lu_bssrdf_layer layer = {lu_v3s(1.0f), lu_v3s(0.0f), 1.3f, 0.0f};
+    lu_bssrdf_profile_desc desc;
+    lu_bssrdf_profile_desc_default(&desc);
+    lu_bssrdf_profile prof;
+    if (!ok_(lu_bssrdf_profile_build(&layer, 1, &desc, &prof, &err), &err)) return;
+    CHECK_NEAR(prof.total_closed[0], 1.0, 1e-6);
+    lu_bssrdf_profile_destroy(&prof);
 }
 
 /* Prefiltered levels: each is the profile averaged over a disc, so it keeps
@@ -490,7 +648,7 @@ static void test_slab_point_light(void) {
                 lu_camera_ray(&s.camera, (float)px + 0.5f, (float)py + 0.5f, &o, &d);
                 double t = -o.y / d.y;
                 conv_ctx c = {o.x + t * d.x, o.z + t * d.z, 8.0, 0, 0};
-                double ft_o = 1.0 - fresnel_r(-d.y, K_ETA);
+                double ft_o = (1.0 - fresnel_r(-d.y, K_ETA)) / exit_fraction(K_ETA);
                 for (c.ch = 0; c.ch < 3; c.ch++) {
                     double l = 1.0 / (k_sp[c.ch] + k_sa[c.ch]);
                     double want = ft_o / M_PI * integrate_r(ring, &c, 1e-2 * l, 60.0 * l, 24);
@@ -526,7 +684,7 @@ static void test_slab_directional_multipole(void) {
                 for (int px = 2; px < s.camera.width; px += 5) {
                     lu_vec3 o, d;
                     lu_camera_ray(&s.camera, (float)px + 0.5f, (float)py + 0.5f, &o, &d);
-                    double ft_o = 1.0 - fresnel_r(-d.y, K_ETA);
+                    double ft_o = (1.0 - fresnel_r(-d.y, K_ETA)) / exit_fraction(K_ETA);
                     for (int c = 0; c < 3; c++) {
                         double R, T;
                         slab_totals(k_sp[c], k_sa[c], K_ETA, 10.0, &R, &T);
@@ -634,6 +792,8 @@ int main(void) {
     RUN_TEST(test_dipole_profile_and_total);
     RUN_TEST(test_prefilter_levels);
     RUN_TEST(test_multipole_totals);
+    RUN_TEST(test_burley_vs_walk);
+    RUN_TEST(test_white_furnace);
     RUN_TEST(test_multilayer);
     RUN_TEST(test_sh9_irradiance);
     RUN_TEST(test_relaxation);
