@@ -128,6 +128,17 @@ void lu_bssrdf_slab_totals(double sigma_sp, double sigma_a, double eta_top, doub
     *t_total = alpha * tt;
 }
 
+double lu_bssrdf_invert_albedo(double albedo, double eta) {
+    double lo = 0.0, hi = 1.0;
+    for (int i = 0; i < 64; i++) {
+        double mid = 0.5 * (lo + hi), r, t;
+        lu_bssrdf_slab_totals(mid, 1.0 - mid, eta, eta, INFINITY, &r, &t);
+        if (r < albedo) lo = mid;
+        else hi = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
 /* ---- table helpers ------------------------------------------------------------------ */
 
 /* Entry i of an n-entry table sits at r = r_max (i / (n - 1))^2: the
