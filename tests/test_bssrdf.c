@@ -758,8 +758,8 @@ static void test_cpu_gpu_agree(void) {
     lu_scene s;
     if (!load(slab_json(json, sizeof json, "{\"type\": \"point\", \"position\": [3, 8, -2], \"intensity\": [100, 80, 60]}"), &s))
         return;
-    static const char *const profiles[2] = {"dipole", "multipole"};
-    for (int p = 0; p < 2; p++) {
+    static const char *const profiles[3] = {"dipole", "multipole", "burley"};
+    for (int p = 0; p < 3; p++) {
         lu_image a, b;
         if (!render(&s, profiles[p], LU_BACKEND_CPU, 4000, &a)) continue;
         if (render(&s, profiles[p], LU_BACKEND_GPU, 4000, &b)) {
