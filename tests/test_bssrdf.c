@@ -246,10 +246,14 @@ static void test_burley_vs_walk(void) {
                 if (eq < best) best = eq, h_best = h;
             }
             double bound = best + 0.055 + 3.0 * sqrt(var);
+            /* For comparison, the other pairing: 1/sigma_tr with s = 3.5 + 100 (A - 0.33)^4. */
+            double a = prof.total_closed[c], t4 = (a - 0.33) * (a - 0.33);
+            double h_d = 1.0 / sqrt(3.0 * p->sigma_a[c] / l) / (3.5 + 100.0 * t4 * t4);
             fprintf(stderr,
-                    "  burley %-7s ch %d: A %.3f, mean rel. error %.2f %% (sigma %.2f %%), best h %.2f %% at h/l %.2f (fit %.2f)\n",
-                    names[k], c, prof.total_closed[c], 100 * e, 100 * sqrt(var), 100 * best, h_best / l,
-                    lu_k_burley_h((float)prof.total_closed[c], (float)l) / l);
+                    "  burley %-9s ch %d: A %.3f, mean rel. error %.2f %% (sigma %.2f %%), best h %.2f %% at h/l %.2f "
+                    "(fit %.2f); diffuse-mfp pairing %.2f %%\n",
+                    names[k], c, a, 100 * e, 100 * sqrt(var), 100 * best, h_best / l, lu_k_burley_h((float)a, (float)l) / l,
+                    100 * burley_bins_error(W, tot, BINS, dr, a, h_d));
             CHECK_MSG(e <= bound, "%s ch %d: %.4f > %.4f", names[k], c, e, bound);
             sum_e += e;
             n_e++;
