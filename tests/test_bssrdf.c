@@ -287,7 +287,7 @@ static void test_white_furnace(void) {
     }
     lu_bssrdf_mc_result mc;
     lu_error err;
-    if (!ok_(lu_bssrdf_mc_slab(1.0, 0.0, 1.3, INFINITY, 40000, 3, 4, 1.0, &mc, &err), &err)) return;
+    if (!ok_(lu_bssrdf_mc_slab(1.0, 0.0, 1.3, INFINITY, 20000, 3, 4, 1.0, &mc, &err), &err)) return;
     fprintf(stderr, "  walk, non-absorbing, eta 1.3: %.5f +- %.1e leaves, %.1e dropped at the event cap\n", mc.r_total,
             mc.r_stderr, mc.dropped);
     CHECK(mc.r_total <= 1.0 + 3.0 * mc.r_stderr);
