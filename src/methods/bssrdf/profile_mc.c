@@ -5,20 +5,14 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/rng.h"
 #include "kernels/lu_optics.h"
 
 typedef struct mc_rng {
     uint64_t s;
 } mc_rng;
 
-/* splitmix64: one multiply-xorshift stream per chunk. */
-static double mc_uniform(mc_rng *g) {
-    uint64_t z = (g->s += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * (1.0 / 9007199254740992.0);
-}
+static double mc_uniform(mc_rng *g) { return lu_rng_unit(&g->s); }
 
 enum { MC_CHUNKS = 64 };
 /* Per chunk: R bins, T bins, R bins of multiply scattered light, then
@@ -43,7 +37,13 @@ static void mc_chunk(void *vctx, int64_t begin, int64_t end, int thread) {
     mc_job *j = vctx;
     for (int64_t chunk = begin; chunk < end; chunk++) {
         double *tal = j->tally + (size_t)chunk * TALLY(j->bins);
-        mc_rng g = {j->seed * 0x2545F4914F6CDD1Dull + (uint64_t)chunk * 0x9E3779B97F4A7C15ull + 1};
+        /* One splitmix64 stream per chunk, started at a hashed point: streams
+         * started at states one Weyl increment apart (chunk times the generator's
+         * own increment) would be the same sequence shifted by one draw per chunk,
+         * so the chunks' paths would be nearly identical and the noise 8x what
+         * the path count promises. */
+        uint64_t key = j->seed * 0xD1B54A32D192ED03ull + (uint64_t)chunk;
+        mc_rng g = {lu_rng_next(&key)};
         long long p0 = j->paths * chunk / MC_CHUNKS, p1 = j->paths * (chunk + 1) / MC_CHUNKS;
         for (long long p = p0; p < p1; p++) {
             double x = 0, y = 0, z = 0, dx = 0, dy = 0, dz = 1, w = 1.0, r_path = 0.0;
