@@ -91,9 +91,10 @@ enum {
 };
 
 static const lu_param_desc k_params[P_COUNT] = {
-    [P_PROFILE] = {"profile", LU_PARAM_CHOICE, 0, 0, 2, "dipole|multipole|burley",
+    [P_PROFILE] = {"profile", LU_PARAM_CHOICE, 0, 0, 3, "dipole|multipole|burley|pbd",
                    "diffusion profile: Jensen dipole (1D), Donner-Jensen multipole R and T over thickness (2D), "
-                   "Christensen-Burley normalised diffusion (1D); coated materials always use multipole layers"},
+                   "Christensen-Burley normalised diffusion (1D), photon beam diffusion plus single scattering "
+                   "(1D, tabulated); coated materials always use multipole layers"},
     [P_SPLATS] = {"splats", LU_PARAM_INT, 4096, 1, 16777216, NULL,
                   "light samples per light and translucent object (an N x M grid over its region of interest)"},
     [P_MAP_RES] = {"map_res", LU_PARAM_INT, 512, 16, 8192, NULL,

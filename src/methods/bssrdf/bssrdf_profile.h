@@ -16,7 +16,8 @@
 typedef enum lu_bssrdf_model {
     LU_BSSRDF_DIPOLE = 0,
     LU_BSSRDF_MULTIPOLE = 1,
-    LU_BSSRDF_BURLEY = 2
+    LU_BSSRDF_BURLEY = 2,
+    LU_BSSRDF_PBD = 3     /* photon beam diffusion + single scattering (profile_pbd.h), 1D */
 } lu_bssrdf_model;
 
 /* One homogeneous layer. */
