@@ -41,14 +41,16 @@ typedef struct cmp {
     int bins95;                 /* coarse bins holding 95 % of the walk's reflectance */
     double r95;                 /* their outer radius */
     double worst, worst_noise;  /* max |model / walk - 1| and max walk noise over them */
+    double mean_err;            /* the same, power-weighted mean */
+    double worst_alt, mean_alt, total_alt;  /* a second profile (the dipole) in the same bins */
     double total_model, total_walk, total_se;
     double ss_model, ss_walk, ss_se;  /* single scattering alone (events == 1) */
 } cmp;
 
 /* One channel: walk in BATCHES independent batches over FINE bins out to the
  * profile's r_max, summed into COARSE annuli of equal model power. */
-static bool compare(const lu_bssrdf_profile *p, int c, double ssp, double sa, double eta, long long paths,
-                    unsigned long long seed, cmp *out) {
+static bool compare(const lu_bssrdf_profile *p, const lu_bssrdf_profile *alt, int c, double ssp, double sa,
+                    double eta, long long paths, unsigned long long seed, cmp *out) {
     memset(out, 0, sizeof *out);
     double rm = p->r_max, dr = rm / FINE;
     int edge[COARSE + 1];
@@ -99,12 +101,21 @@ static bool compare(const lu_bssrdf_profile *p, int c, double ssp, double sa, do
     for (int j = 0; j < COARSE && cum < 0.95 * mt; j++) {
         double model = table_power(p, c, edge[j] * dr, edge[j + 1] * dr);
         double err = fabs(model / mean[j] - 1.0), noise = se[j] / mean[j];
+        if (alt) {
+            double ea = fabs(table_power(alt, c, edge[j] * dr, edge[j + 1] * dr) / mean[j] - 1.0);
+            out->worst_alt = fmax(out->worst_alt, ea);
+            out->mean_alt += ea * mean[j];
+        }
+        out->mean_err += err * mean[j];
         out->worst = fmax(out->worst, err);
         out->worst_noise = fmax(out->worst_noise, noise);
         out->bins95 = j + 1;
         out->r95 = edge[j + 1] * dr;
         cum += mean[j];
     }
+    out->mean_err /= cum;
+    out->mean_alt /= cum;
+    if (alt) out->total_alt = alt->total_closed[c];
     return true;
 }
 
@@ -156,7 +167,7 @@ static void test_single_scattering(void) {
     }
     lu_bssrdf_profile p = build(0.5, 0.5, 1.3);
     cmp c;
-    if (compare(&p, 0, 0.5, 0.5, 1.3, 400000, 7, &c)) {
+    if (compare(&p, NULL, 0, 0.5, 0.5, 1.3, 400000, 7, &c)) {
         fprintf(stderr, "  single scattering: walk %.5f +- %.1e, closed form %.5f\n", c.ss_walk, c.ss_se,
                 ss_total_closed(0.5, 1.3));
         CHECK_NEAR(c.ss_walk, ss_total_closed(0.5, 1.3), 3.0 * c.ss_se);
@@ -195,17 +206,17 @@ static void test_table_against_terms(void) {
 
 /* ---- against the walk ---------------------------------------------------------------- */
 
-static void print_row(const char *name, int c, const lu_bssrdf_profile *p, const cmp *k, double rho) {
-    printf("%-11s %c %8.5f %4d %8.3g %8.4f %8.4f %8.5f %8.5f %8.1e %8.4f\n", name, "RGB"[c], rho, k->bins95, k->r95,
-           k->worst, k->worst_noise, k->total_model, k->total_walk, k->total_se,
-           k->total_model / k->total_walk - 1.0);
-    (void)p;
+static void print_row(const char *name, int c, const cmp *k, double rho) {
+    printf("%-10s %c %8.5f %3d %7.3g %7.4f %7.4f %7.4f %7.4f %7.4f %8.5f %8.5f %7.1e %7.4f %7.4f %s\n", name, "RGB"[c],
+           rho, k->bins95, k->r95, k->worst, k->mean_err, k->worst_noise, k->worst_alt, k->mean_alt, k->total_model, k->total_walk,
+           k->total_se, k->total_model / k->total_walk - 1.0, k->total_alt / k->total_walk - 1.0,
+           k->worst_noise > 0.01 ? "noisy" : k->worst <= 0.03 ? "pass" : "miss");
 }
 
 static void all_presets(long long paths) {
     int n;
     const lu_material_preset *ps = lu_material_presets(&n);
-    printf("preset      ch  albedo' bins r95_mm   worst    noise    R_pbd    R_walk   R_se     R_rel\n");
+    printf("preset    ch  albedo' bins r95_mm worst   mean    noise  dip_worst dip_mean R_pbd  R_walk  R_se  R_pbd/w-1 R_dip/w-1\n");
     for (int k = 0; k < n; k++) {
         const lu_material_preset *m = &ps[k];
         lu_bssrdf_layer layer = {lu_v3(m->sigma_s_prime[0], m->sigma_s_prime[1], m->sigma_s_prime[2]),
@@ -213,9 +224,11 @@ static void all_presets(long long paths) {
         lu_bssrdf_profile_desc d;
         lu_bssrdf_profile_desc_default(&d);
         d.model = LU_BSSRDF_PBD;
-        lu_bssrdf_profile p;
+        lu_bssrdf_profile p, dip;
         lu_error err = {0};
         CHECK_OK(lu_bssrdf_profile_build(&layer, 1, &d, &p, &err), &err);
+        d.model = LU_BSSRDF_DIPOLE;
+        CHECK_OK(lu_bssrdf_profile_build(&layer, 1, &d, &dip, &err), &err);
         for (int c = 0; c < 3; c++) {
             double sp = m->sigma_s_prime[c], sa = m->sigma_a[c];
             if (sa <= 0.0) {
@@ -223,11 +236,103 @@ static void all_presets(long long paths) {
                 continue;
             }
             cmp r;
-            if (compare(&p, c, sp, sa, m->eta, paths, 11 + c, &r)) print_row(m->name, c, &p, &r, sp / (sp + sa));
+            if (compare(&p, &dip, c, sp, sa, m->eta, paths, 11 + c, &r)) {
+                print_row(m->name, c, &r, sp / (sp + sa));
+                /* The target: 3 % in every bin of the 95 %, with the walk's noise <= 1 % there. */
+                CHECK_MSG(r.worst_noise <= 0.01, "%s %c: walk noise %.4f > 1 %% (more paths)", m->name, "RGB"[c],
+                          r.worst_noise);
+                CHECK_MSG(r.worst <= 0.03, "%s %c: pbd off the walk by %.4f in a bin", m->name, "RGB"[c], r.worst);
+            }
             fflush(stdout);
         }
         lu_bssrdf_profile_destroy(&p);
+        lu_bssrdf_profile_destroy(&dip);
     }
+}
+
+static void test_better_than_dipole(void) {
+    /* Where the dipole is known to fail (moderate albedo, near the entry
+     * point) pbd must be closer to the walk, bin for bin and on average:
+     * skin1 red and chicken1 green, the walk at about 1.5 % noise per bin. */
+    static const struct {
+        double sp, sa;
+    } k[2] = {{0.74, 0.032}, {0.21, 0.077}};
+    for (int i = 0; i < 2; i++) {
+        lu_bssrdf_profile p = build(k[i].sp, k[i].sa, 1.3);
+        lu_bssrdf_layer layer = {lu_v3s((float)k[i].sp), lu_v3s((float)k[i].sa), 1.3f, 0.0f};
+        lu_bssrdf_profile_desc d;
+        lu_bssrdf_profile_desc_default(&d);
+        lu_bssrdf_profile dip;
+        lu_error err = {0};
+        CHECK_OK(lu_bssrdf_profile_build(&layer, 1, &d, &dip, &err), &err);
+        cmp c;
+        if (compare(&p, &dip, 0, k[i].sp, k[i].sa, 1.3, 200000, 3 + i, &c)) {
+            fprintf(stderr, "  sigma_s' %g sigma_a %g: pbd worst %.3f mean %.3f, dipole worst %.3f mean %.3f (noise %.3f)\n",
+                    k[i].sp, k[i].sa, c.worst, c.mean_err, c.worst_alt, c.mean_alt, c.worst_noise);
+            CHECK(c.worst + 3.0 * c.worst_noise < c.worst_alt);
+            CHECK(c.mean_err + 3.0 * c.worst_noise < c.mean_alt);
+        }
+        lu_bssrdf_profile_destroy(&p);
+        lu_bssrdf_profile_destroy(&dip);
+    }
+}
+
+/* ---- both backends ---------------------------------------------------------------- */
+
+static lu_result render(const lu_scene *s, const char *profile, lu_backend b, lu_image *img, lu_error *err) {
+    lu_kvlist set = {0};
+    double splats = 1500, res = 256;
+    lu_kv_set_string(&set, "bssrdf.profile", profile, err);
+    lu_kv_set_number(&set, "bssrdf.splats", &splats, 1, err);
+    lu_kv_set_number(&set, "bssrdf.map_res", &res, 1, err);
+    lu_renderer *r = NULL;
+    memset(img, 0, sizeof *img);
+    lu_result rc = lu_renderer_create("bssrdf", s, &set, b, &r, err);
+    if (rc == LU_OK) rc = lu_renderer_render(r, s, img, err);
+    lu_renderer_destroy(r);
+    lu_kv_free(&set);
+    return rc;
+}
+
+static double image_mean(const lu_image *im) {
+    double sum = 0.0;
+    for (size_t i = 0; i < (size_t)im->width * im->height * 3; i++) sum += im->rgb[i];
+    return sum / ((double)im->width * im->height * 3);
+}
+
+static void test_gpu_equals_cpu(void) {
+    /* The bundled marble bunny: GPU = CPU within the cross-backend bound
+     * (rel-L2 1e-3, docs/architecture.md section 5), on an image that is not
+     * black, and that differs from the dipole's (so the pbd table is what
+     * both backends read). */
+    lu_scene s;
+    lu_error err = {0};
+    lu_result lr = lu_scene_load(LU_SOURCE_DIR "/scenes/marble_bunny.json", &s, &err);
+    CHECK_OK(lr, &err);
+    if (lr != LU_OK) return;
+    s.camera.width = 48;
+    s.camera.height = 48;
+    lu_image cpu, gpu, dip;
+    lu_result a = render(&s, "pbd", LU_BACKEND_CPU, &cpu, &err);
+    CHECK_OK(a, &err);
+    lu_result b = render(&s, "pbd", LU_BACKEND_GPU, &gpu, &err);
+    CHECK_OK(b, &err);
+    lu_result c = render(&s, "dipole", LU_BACKEND_CPU, &dip, &err);
+    CHECK_OK(c, &err);
+    if (a == LU_OK && b == LU_OK && c == LU_OK) {
+        lu_metrics m = {0}, md = {0};
+        CHECK_OK(lu_image_compare(&gpu, &cpu, &m, &err), &err);
+        CHECK_OK(lu_image_compare(&dip, &cpu, &md, &err), &err);
+        fprintf(stderr, "  pbd: GPU vs CPU rel-L2 %.2e (mean %.4g); pbd vs dipole rel-L2 %.3f\n", m.rel_l2,
+                image_mean(&cpu), md.rel_l2);
+        CHECK(image_mean(&cpu) > 1e-3);
+        CHECK(m.rel_l2 <= 1e-3);
+        CHECK(md.rel_l2 > 1e-2);
+    }
+    if (a == LU_OK) lu_image_destroy(&cpu);
+    if (b == LU_OK) lu_image_destroy(&gpu);
+    if (c == LU_OK) lu_image_destroy(&dip);
+    lu_scene_destroy(&s);
 }
 
 int main(int argc, char **argv) {
@@ -237,5 +342,7 @@ int main(int argc, char **argv) {
     }
     RUN_TEST(test_single_scattering);
     RUN_TEST(test_table_against_terms);
+    RUN_TEST(test_better_than_dipole);
+    RUN_TEST(test_gpu_equals_cpu);
     TEST_EXIT();
 }
