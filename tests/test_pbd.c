@@ -6,8 +6,9 @@
  * assumed.
  *
  *   test_pbd                  the checks below (a few channels; ~20 s)
- *   test_pbd --all-presets [PATHS]
- *                             the per-preset table of docs/bssrdf.md ("pbd") */
+ *   test_pbd --all-presets [PATHS [PRESET]]
+ *                             the per-preset table of docs/bssrdf.md ("pbd");
+ *                             with PRESET, that one only, bin by bin */
 #include "lu_test.h"
 
 #include "methods/bssrdf/bssrdf_profile.h"
@@ -16,6 +17,7 @@
 #include "kernels/lu_optics.h"
 
 enum { FINE = 4000, COARSE = 16, BATCHES = 8 };
+static bool g_verbose;  /* print every bin */
 
 /* int 2 pi r P(r) dr over [r0, r1] of channel c of a 1D table, exactly as
  * the renderer interpolates it (linear in x = sqrt(r / r_max) between
@@ -107,6 +109,10 @@ static bool compare(const lu_bssrdf_profile *p, const lu_bssrdf_profile *alt, in
             out->mean_alt += ea * mean[j];
         }
         out->mean_err += err * mean[j];
+        if (g_verbose)
+            printf("    bin %2d  r %8.4g..%8.4g  walk %.5f +- %.1e  pbd %.5f (%+.4f)  dipole %+.4f\n", j, edge[j] * dr,
+                   edge[j + 1] * dr, mean[j], se[j], model, model / mean[j] - 1.0,
+                   alt ? table_power(alt, c, edge[j] * dr, edge[j + 1] * dr) / mean[j] - 1.0 : 0.0);
         out->worst = fmax(out->worst, err);
         out->worst_noise = fmax(out->worst_noise, noise);
         out->bins95 = j + 1;
@@ -213,12 +219,13 @@ static void print_row(const char *name, int c, const cmp *k, double rho) {
            k->worst_noise > 0.01 ? "noisy" : k->worst <= 0.03 ? "pass" : "miss");
 }
 
-static void all_presets(long long paths) {
+static void all_presets(long long paths, const char *only) {
     int n;
     const lu_material_preset *ps = lu_material_presets(&n);
     printf("preset    ch  albedo' bins r95_mm worst   mean    noise  dip_worst dip_mean R_pbd  R_walk  R_se  R_pbd/w-1 R_dip/w-1\n");
     for (int k = 0; k < n; k++) {
         const lu_material_preset *m = &ps[k];
+        if (only && strcmp(only, m->name) != 0) continue;
         lu_bssrdf_layer layer = {lu_v3(m->sigma_s_prime[0], m->sigma_s_prime[1], m->sigma_s_prime[2]),
                                  lu_v3(m->sigma_a[0], m->sigma_a[1], m->sigma_a[2]), m->eta, 0.0f};
         lu_bssrdf_profile_desc d;
@@ -232,7 +239,12 @@ static void all_presets(long long paths) {
         for (int c = 0; c < 3; c++) {
             double sp = m->sigma_s_prime[c], sa = m->sigma_a[c];
             if (sa <= 0.0) {
-                printf("%-11s %c  no absorption: the walk has no finite mean length (not compared)\n", m->name, "RGB"[c]);
+                /* Nothing absorbed: everything entering leaves, R = 1 exactly; the walk's
+                 * length has no finite mean, so it is not run. */
+                printf("%-10s %c  no absorption: exact R = 1, pbd %.5f, dipole %.5f\n", m->name, "RGB"[c],
+                       p.total_closed[c], dip.total_closed[c]);
+                CHECK_MSG(fabs(p.total_closed[c] - 1.0) <= 0.03, "%s %c: pbd total %.4f, exact 1", m->name, "RGB"[c],
+                          p.total_closed[c]);
                 continue;
             }
             cmp r;
@@ -337,7 +349,8 @@ static void test_gpu_equals_cpu(void) {
 
 int main(int argc, char **argv) {
     if (argc >= 2 && strcmp(argv[1], "--all-presets") == 0) {
-        all_presets(argc >= 3 ? atoll(argv[2]) : 800000);
+        g_verbose = argc >= 4;
+        all_presets(argc >= 3 ? atoll(argv[2]) : 800000, argc >= 4 ? argv[3] : NULL);
         return lu_test_failures ? EXIT_FAILURE : EXIT_SUCCESS;
     }
     RUN_TEST(test_single_scattering);
