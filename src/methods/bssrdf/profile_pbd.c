@@ -239,6 +239,7 @@ static lu_bssrdf_pbd_table *g_pbd[PBD_CACHE];
 lu_result lu_bssrdf_pbd_table_get(double eta, const lu_bssrdf_pbd_table **out, lu_error *err) {
     *out = NULL;
     if (!(eta >= 1.0 && eta <= 4.0)) return lu_fail(err, LU_ERR_RANGE, "bssrdf: pbd needs eta in [1, 4] (got %g)", eta);
+    eta = (double)(float)eta; /* materials carry float indices: one table per float value */
     pthread_mutex_lock(&g_pbd_mu);
     lu_result r = LU_OK;
     int slot = -1;
