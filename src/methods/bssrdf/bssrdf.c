@@ -2,7 +2,7 @@
  * (Rohat 2011; docs/bssrdf.md).
  *
  * prepare: per translucent object, its profile table (dipole / normalised
- *   diffusion 1D, multipole 2D, coated stacks by FFT; r_max by Simpson,
+ *   diffusion / photon beam diffusion 1D, multipole 2D, coated stacks by FFT; r_max by Simpson,
  *   eps), and for environment lights: the SH9 projection of the maps and
  *   surface samples (area CDF, N_s = A / (pi l_u^2), repulsion relaxation)
  *   with their Fresnel-weighted SH irradiance as flux.
@@ -1296,7 +1296,8 @@ bool lu_bssrdf_last_stats(const lu_renderer *r, lu_bssrdf_frame_stats *out) {
 
 const lu_method lu_method_bssrdf = {
     .name = "bssrdf",
-    .summary = "translucent objects by diffusion profiles (dipole, multipole, coated stacks, normalised diffusion) and "
+    .summary = "translucent objects by diffusion profiles (dipole, multipole, coated stacks, normalised diffusion, "
+               "photon beam diffusion) and "
                "splatting from light-space sample maps; environment light by SH9 and relaxed surface samples",
     .backends = LU_BACKEND_CPU | LU_BACKEND_GPU,
     .params = k_params,
