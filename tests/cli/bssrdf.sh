@@ -12,6 +12,9 @@ trap 'rm -rf "$tmp"' EXIT
 grep -q "closed form *0.866526" "$tmp/p.txt" || { echo "FAIL: closed form"; cat "$tmp/p.txt"; exit 1; }
 grep -q "Simpson, \[0, inf) *0.866526" "$tmp/p.txt" || { echo "FAIL: Simpson"; cat "$tmp/p.txt"; exit 1; }
 "$lucent" profile --preset nosuch >/dev/null 2>&1 && { echo "FAIL: unknown preset accepted"; exit 1; }
+"$lucent" profile --preset marble --model pbd >"$tmp/q.txt"
+grep -q "model pbd, 512 entries" "$tmp/q.txt" || { echo "FAIL: pbd profile"; cat "$tmp/q.txt"; exit 1; }
+"$lucent" profile --preset marble --model nosuch >/dev/null 2>&1 && { echo "FAIL: unknown model accepted"; exit 1; }
 for b in cpu gpu; do
   "$lucent" render "$src/scenes/bssrdf_spheres.json" --method bssrdf --backend $b --size 48x30 \
     --set bssrdf.splats=600 --set bssrdf.profile=multipole -o "$tmp/$b.exr" 2>/dev/null
