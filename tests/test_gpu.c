@@ -303,7 +303,9 @@ static void test_backend_auto(void) {
         lu_renderer *r = NULL;
         lu_backend zero = {0};
         CHECK_OK(lu_renderer_create(names[i], &scene, NULL, zero, &r, &err), &err);
-        if (r) CHECK(r->backend == lu_backend_resolve(LU_BACKEND_AUTO, r->method));
+        lu_renderer_stats st = {0};
+        if (r) CHECK_OK(lu_renderer_get_stats(r, &st, &err), &err);
+        if (r) CHECK(st.backend == lu_backend_resolve(LU_BACKEND_AUTO, lu_method_find(names[i])));
         lu_renderer_destroy(r);
     }
     lu_scene_destroy(&scene);

@@ -26,16 +26,16 @@ struct lu_frame_stage {
 };
 
 lu_result lu_frame_stage_create(lu_frame_stage **out, lu_error *err) {
-    *out = calloc(1, sizeof **out);
+    *out = lu_calloc(1, sizeof **out);
     return *out ? LU_OK : lu_fail(err, LU_ERR_NOMEM, "out of memory");
 }
 
 void lu_frame_stage_destroy(lu_frame_stage *s) {
     if (!s) return;
-    free(s->lights);
-    free(s->media);
-    free(s->objects);
-    free(s);
+    lu_free(s->lights);
+    lu_free(s->media);
+    lu_free(s->objects);
+    lu_free(s);
 }
 
 static bool same(const void *a, const void *b, size_t n) { return memcmp(a, b, n) == 0; }
@@ -121,7 +121,7 @@ void lu_frame_stage_begin(lu_frame_stage *s, const lu_scene *scene, lu_frame *f)
 
 static lu_result copy_array(void **dst, int *cap, const void *src, int count, size_t size, lu_error *err) {
     if (count > *cap) {
-        void *p = realloc(*dst, (size_t)count * size);
+        void *p = lu_realloc(*dst, (size_t)count * size);
         if (!p) return lu_fail(err, LU_ERR_NOMEM, "out of memory");
         *dst = p;
         *cap = count;

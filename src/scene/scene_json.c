@@ -622,7 +622,7 @@ static lu_result add_object_media(parse_ctx *c, lu_scene *s) {
     int extra = 0;
     for (int i = 0; i < s->object_count; i++) extra += s->objects[i].material.type == LU_MATERIAL_TRANSLUCENT;
     if (!extra) return LU_OK;
-    lu_medium *media = realloc(s->media, (size_t)(s->medium_count + extra) * sizeof *media);
+    lu_medium *media = lu_realloc(s->media, (size_t)(s->medium_count + extra) * sizeof *media);
     if (!media) return lu_fail(c->err, LU_ERR_NOMEM, "%s: out of memory", c->file);
     s->media = media;
     for (int i = 0; i < s->object_count; i++) {
@@ -666,7 +666,7 @@ static lu_result add_object_media(parse_ctx *c, lu_scene *s) {
                 return scene_fail(c, &lp_, LU_ERR_LIMIT, "%d entries exceed the limit of %d", n_,  \
                                   LU_SCENE_MAX_ITEMS);                                              \
             if (n_ > 0) {                                                                           \
-                ARRAY = calloc((size_t)n_, sizeof *ARRAY);                                          \
+                ARRAY = lu_calloc((size_t)n_, sizeof *ARRAY);                                          \
                 if (!ARRAY) return lu_fail(c->err, LU_ERR_NOMEM, "%s: out of memory", c->file);     \
             }                                                                                       \
             int i_ = 0;                                                                             \
@@ -738,10 +738,10 @@ lu_result lu_scene_load(const char *path, lu_scene *scene, lu_error *err) {
     lu_result r = lu_read_file(path, LU_SCENE_MAX_BYTES, &text, &size, err);
     if (r != LU_OK) return r;
     if (strlen(text) != size) {
-        free(text);
+        lu_free(text);
         return lu_fail(err, LU_ERR_FORMAT, "%s: offset %zu: NUL byte in a JSON file", path, strlen(text));
     }
     r = lu_scene_load_string(text, path, scene, err);
-    free(text);
+    lu_free(text);
     return r;
 }

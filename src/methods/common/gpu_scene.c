@@ -67,16 +67,16 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
     const lu_camera *c = &scene->camera;
     lu_k_camera cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
     int nl = scene->light_count > 0 ? scene->light_count : 1;
-    lu_k_light *kl = calloc((size_t)nl, sizeof *kl);
-    float *lights = calloc((size_t)nl * LU_SCENE_LIGHT_VEC4 * 4, sizeof(float));
+    lu_k_light *kl = lu_calloc((size_t)nl, sizeof *kl);
+    float *lights = lu_calloc((size_t)nl * LU_SCENE_LIGHT_VEC4 * 4, sizeof(float));
     size_t maj_floats = 0;
     for (int m = 0; m < gs->medium_count; m++) maj_floats += (size_t)gs->maj[m].nx * gs->maj[m].ny * gs->maj[m].nz;
     size_t media_floats = (size_t)LU_SCENE_MAJORANT_DATA * 4 + (maj_floats + 3) / 4 * 4;
-    float *media = calloc(media_floats, sizeof(float));
+    float *media = lu_calloc(media_floats, sizeof(float));
     if (!kl || !lights || !media) {
-        free(kl);
-        free(lights);
-        free(media);
+        lu_free(kl);
+        lu_free(lights);
+        lu_free(media);
         return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
     }
     int light_count = lu_scene_kernel_lights(scene, kl);
@@ -138,9 +138,9 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
         if (!gs->header) r = lu_gpu_buffer_create(gs->ctx, sizeof header, header, &gs->header, err);
         else r = lu_gpu_buffer_upload(gs->header, 0, header, sizeof header, err);
     }
-    free(kl);
-    free(lights);
-    free(media);
+    lu_free(kl);
+    lu_free(lights);
+    lu_free(media);
     return r;
 }
 
@@ -150,7 +150,7 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
     if (scene->medium_count > LU_SCENE_MAX_MEDIA)
         return lu_fail(err, LU_ERR_LIMIT, "gpu scene: %d media, the GPU backend takes at most %d",
                        scene->medium_count, LU_SCENE_MAX_MEDIA);
-    lu_gpu_scene *gs = calloc(1, sizeof *gs);
+    lu_gpu_scene *gs = lu_calloc(1, sizeof *gs);
     if (!gs) return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
     gs->ctx = ctx;
     gs->medium_count = scene->medium_count;
@@ -221,5 +221,5 @@ void lu_gpu_scene_destroy(lu_gpu_scene *gs) {
     lu_gpu_buffer_destroy(gs->header);
     lu_gpu_buffer_destroy(gs->media);
     lu_gpu_buffer_destroy(gs->lights);
-    free(gs);
+    lu_free(gs);
 }

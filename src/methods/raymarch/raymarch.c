@@ -76,14 +76,14 @@ static void rm_destroy(void *state) {
     if (!st) return;
     lu_raymarch_gpu_destroy(st->gpu);
     lu_media_rays_free(&st->mr);
-    free(st->km);
-    free(st->kl);
-    free(st);
+    lu_free(st->km);
+    lu_free(st->kl);
+    lu_free(st);
 }
 
 static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                             lu_error *err) {
-    rm_state *st = calloc(1, sizeof *st);
+    rm_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     st->backend = backend;
     st->steps = (int)params[P_STEPS];
@@ -95,7 +95,7 @@ static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_back
         r = lu_fail(err, LU_ERR_LIMIT, "raymarch: %d media (at most %d)", scene->medium_count, LU_K_RM_MAX_MEDIA);
     st->eps = lu_scene_ray_epsilon(scene);
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, st->res, false, err);
-    st->km = calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *st->km);
+    st->km = lu_calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *st->km);
     if (!st->km && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_raymarch_gpu_create(scene, &st->gpu, err);
     if (r != LU_OK) {
@@ -134,7 +134,7 @@ static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu
     const lu_camera *c = &scene->camera;
     st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
     for (int m = 0; m < scene->medium_count; m++) st->km[m] = lu_medium_to_kernel(&scene->media[m]);
-    lu_k_light *kl = realloc(st->kl, (scene->light_count ? (size_t)scene->light_count : 1u) * sizeof *kl);
+    lu_k_light *kl = lu_realloc(st->kl, (scene->light_count ? (size_t)scene->light_count : 1u) * sizeof *kl);
     if (!kl) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     st->kl = kl;
     int nl = lu_scene_kernel_lights(scene, kl);
