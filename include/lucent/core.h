@@ -271,7 +271,8 @@ void lu_atomic_abort(lu_atomic_file *f);
 /* Opens a regular file for binary reading and reports its size; errors name
  * the path (LU_ERR_IO for a missing file or a directory). */
 lu_result lu_open_regular(const char *path, void **fp, uint64_t *size, lu_error *err);
-/* Reads a whole file (up to max_bytes) into a NUL-terminated buffer. */
+/* Reads a whole file (up to max_bytes) into a NUL-terminated buffer, which
+ * the caller releases with lu_free. */
 lu_result lu_read_file(const char *path, size_t max_bytes, char **data, size_t *size, lu_error *err);
 /* Lower-case extension after the last '.', "" if none; ".ply.gz" -> "gz". */
 const char *lu_path_ext(const char *path);
