@@ -50,6 +50,10 @@ static void test_presets(void) {
     lu_kv_free(&kv);
 }
 
+static void count_partial(void *user, const lu_image *partial, int done, int total) {
+    (*(int *)user)++;
+}
+
 /* The renderer descriptor: zero means the defaults, resolved in one place;
  * "set" texts override settings; the stats count what happened. */
 static void test_renderer_desc_and_stats(void) {
@@ -113,6 +117,19 @@ static void test_renderer_desc_and_stats(void) {
     lu_renderer_desc td = {.method = "raymarch", .backend = LU_BACKEND_CPU, .set = typo};
     CHECK(lu_renderer_make(&td, &scene, &r2, &err) == LU_ERR_INVALID_ARG && r2 == NULL);
     CHECK_MSG(strstr(err.message, "stpes") != NULL, "%s", err.message);
+    /* progressive output through the descriptor: after passes 1 and 2 of 3 */
+    int calls = 0;
+    const char *const spp[] = {"pathtrace.spp=3", NULL};
+    lu_renderer_desc pd = {.method = "pathtrace", .backend = LU_BACKEND_CPU, .set = spp,
+                           .progressive = {.fn = count_partial, .user = &calls, .every = 1}};
+    scene.camera.width = 8;
+    scene.camera.height = 6;
+    lu_image pimg = {0};
+    CHECK_OK(lu_renderer_make(&pd, &scene, &r2, &err), &err);
+    if (r2) CHECK_OK(lu_renderer_render(r2, &scene, &pimg, &err), &err);
+    CHECK_MSG(calls == 2, "%d progressive calls", calls);
+    lu_renderer_destroy(r2);
+    lu_image_destroy(&pimg);
     lu_image_destroy(&img);
     lu_renderer_destroy(r);
     lu_kv_free(&kv);
