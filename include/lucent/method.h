@@ -156,7 +156,7 @@ typedef struct lu_renderer_stats {
     const char *method;            /* the method's name */
     lu_backend backend;            /* resolved: CPU or GPU */
     double prepare_ms;             /* the latest prepare: at make, or again for new geometry */
-    double frame_update_ms;        /* the latest frame's comparison with the frame before (frame stage) */
+    double frame_update_ms;        /* the frame stage: comparing the latest frame with the one before, recording it */
     double render_ms;              /* the latest frame's method render */
     double frame_ms;               /* the latest lu_renderer_render in total: update, any prepare, render */
     uint64_t frames;               /* frames rendered since make */
