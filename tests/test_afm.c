@@ -236,6 +236,7 @@ static void test_map_vs_exact(void) {
 }
 
 static bool render(const lu_scene *s, const char *method, lu_backend backend, lu_image *img, const char *extra) {
+    if (lu_test_skip_gpu(backend)) return false;
     lu_kvlist set = {0};
     lu_error err = {0};
     if (extra) lu_kv_parse_assignment(&set, extra, &err);
