@@ -36,7 +36,7 @@ typedef enum lu_backend { LU_BACKEND_AUTO = 0, LU_BACKEND_CPU = 1, LU_BACKEND_GP
 const char *lu_backend_name(lu_backend b);   /* "auto", "cpu", "gpu" */
 /* What AUTO means on this machine, LU_BACKEND_GPU or LU_BACKEND_CPU, decided
  * once per process: the first call looks for a hardware EGL device (under
- * LUCENT_GPU and LUCENT_GPU_DEVICE) and confirms it with an OpenGL 4.5 context
+ * lu_host.gpu and gpu_device) and confirms it with an OpenGL 4.5 context
  * that it destroys again. why, when not NULL, receives a text that lives as
  * long as the process: the device found, or why there is none. Thread-safe. */
 lu_backend lu_backend_auto(const char **why);

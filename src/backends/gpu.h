@@ -104,9 +104,9 @@ typedef struct lu_gpu_info {
  * error names every candidate tried and why it failed. */
 lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err);
 void lu_gpu_context_destroy(lu_gpu_context *ctx);
-/* True when a hardware GPU can serve the GPU backend under LUCENT_GPU and
- * LUCENT_GPU_DEVICE: a non-software EGL device that gives an OpenGL 4.5 core
- * context. The context is made and destroyed again, and the caller's current
+/* True when a hardware GPU can serve the GPU backend under lu_host.gpu and
+ * gpu_device (the CLI's LUCENT_GPU, LUCENT_GPU_DEVICE): a non-software EGL
+ * device that gives an OpenGL 4.5 core context. The context is made and destroyed again, and the caller's current
  * EGL context is restored. Where EGL enumerates its devices and none is
  * hardware, no driver is loaded. why receives the device found, or why there
  * is none (LUCENT_GPU=software counts as none). */
