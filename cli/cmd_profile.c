@@ -82,6 +82,7 @@ typedef struct mc_summary {
     double total[3], stderr_[3], t_total[3], multiple[3];
     double rel_l2_ms[3];       /* model vs multiply scattered light only */
     double rel_l2[3];          /* model vs walk over [0, r_max], area-weighted */
+    double mean_rel[3];        /* energy-weighted mean |model - walk| / walk over the bins: sum |M - W| / sum W of bin powers */
     /* Reflected power model / walk (multiply scattered) within bands of the
      * channel's mean free path l: r < l, l <= r < 10 l, r >= 10 l (to r_max). */
     double band[3][3];
@@ -131,8 +132,7 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
     for (int c = 0; c < 3; c++) {
         float s = lu_v3_get(k.sigma_tr, c), l = lu_v3_get(k.l, c);
         burley_a[c] = lu_k_dipole_total1(s, lu_v3_get(k.alpha_p, c), l, lu_v3_get(k.zb_top, c));
-        float ell = s > 1e-3f / l ? 1.0f / s : 1e3f * l;
-        burley_h[c] = ell / lu_k_burley_shape(burley_a[c]);
+        burley_h[c] = lu_k_burley_h(burley_a[c], l);
     }
     double dr = prof.r_max / o->bins;
     if (o->mc > 0) {
@@ -151,13 +151,15 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
             mc_r[c] = res.r_profile;
             mc_t[c] = res.t_profile;
             mc_m[c] = res.r_multiple;
-            double num = 0.0, den = 0.0, num_m = 0.0, den_m = 0.0, bm[3] = {0}, bw[3] = {0};
+            double num = 0.0, den = 0.0, num_m = 0.0, den_m = 0.0, bm[3] = {0}, bw[3] = {0}, num_e = 0.0, den_e = 0.0;
             double lch = lu_v3_get(k.l, c);
             for (int b = 0; b < o->bins; b++) {
                 double model = annulus_mean(&k, o, c, b * dr, (b + 1) * dr, 0, burley_a[c], burley_h[c]);
                 double area = M_PI * dr * dr * ((b + 1.0) * (b + 1.0) - (double)b * b);
                 num += area * (model - mc_r[c][b]) * (model - mc_r[c][b]);
                 den += area * mc_r[c][b] * mc_r[c][b];
+                num_e += area * fabs(model - mc_r[c][b]);
+                den_e += area * mc_r[c][b];
                 num_m += area * (model - mc_m[c][b]) * (model - mc_m[c][b]);
                 den_m += area * mc_m[c][b] * mc_m[c][b];
                 double rcen = (b + 0.5) * dr;
@@ -166,6 +168,7 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
                 bw[band] += area * mc_m[c][b];
             }
             ms->rel_l2[c] = den > 0.0 ? sqrt(num / den) : 0.0;
+            ms->mean_rel[c] = den_e > 0.0 ? num_e / den_e : 0.0;
             ms->rel_l2_ms[c] = den_m > 0.0 ? sqrt(num_m / den_m) : 0.0;
             for (int q = 0; q < 3; q++) ms->band[q][c] = bw[q] > 0.0 ? bm[q] / bw[q] : NAN;
         }
@@ -181,6 +184,8 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
                    ms->multiple[2]);
             printf("    model rel-L2 on [0, r_max] %9.4f %10.4f %10.4f  (all light)\n", ms->rel_l2[0], ms->rel_l2[1],
                    ms->rel_l2[2]);
+            printf("    model mean rel. error      %9.4f %10.4f %10.4f  (energy-weighted over the bins, all light)\n",
+                   ms->mean_rel[0], ms->mean_rel[1], ms->mean_rel[2]);
             printf("    model rel-L2 on [0, r_max] %9.4f %10.4f %10.4f  (multiple scattering only)\n", ms->rel_l2_ms[0],
                    ms->rel_l2_ms[1], ms->rel_l2_ms[2]);
             static const char *const names[3] = {"r < 1 mfp", "1-10 mfp", "10 mfp-r_max"};

@@ -369,6 +369,9 @@ static void fill_material(bssrdf_state *st, int o, const lu_object *ob) {
         m[21] = t->prof.kind ? t->prof.r_max_t : 0.0f;
         m[22] = t->prof.kind ? t->prof.d_t_cut : 0.0f;
         m[23] = (float)lu_bssrdf_profile_level_entries(&t->prof);
+        double k[3];   /* k[0] = 2 pi int F_t mu dmu = pi (1 - F_dr,ext) */
+        lu_bssrdf_sh_kernel(t->eta_top, k);
+        m[24] = (float)(M_PI / k[0]);
     }
     m[9] = mat->shininess;
     m[10] = ti >= 0 ? 0.0f : mat->albedo.x;

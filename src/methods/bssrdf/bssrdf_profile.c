@@ -128,6 +128,17 @@ void lu_bssrdf_slab_totals(double sigma_sp, double sigma_a, double eta_top, doub
     *t_total = alpha * tt;
 }
 
+double lu_bssrdf_invert_albedo(double albedo, double eta) {
+    double lo = 0.0, hi = 1.0;
+    for (int i = 0; i < 64; i++) {
+        double mid = 0.5 * (lo + hi), r, t;
+        lu_bssrdf_slab_totals(mid, 1.0 - mid, eta, eta, INFINITY, &r, &t);
+        if (r < albedo) lo = mid;
+        else hi = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
 /* ---- table helpers ------------------------------------------------------------------ */
 
 /* Entry i of an n-entry table sits at r = r_max (i / (n - 1))^2: the
@@ -214,11 +225,10 @@ static lu_result build_1d(const lu_bssrdf_layer *layer, const lu_bssrdf_profile_
         radial_range(l, s, &r_lo, &r_hi);
         ctx.ch = c;
         if (desc->model == LU_BSSRDF_BURLEY) {
-            /* Matched to the dipole's total; the diffuse mean free path 1/sigma_tr
-             * is floored at 1000 mfp for non-absorbing media, where it is infinite. */
+            /* Matched to the dipole's total (the same albedo, and so the same
+             * inversion of authored albedos, for every profile). */
             burley_a[c] = lu_k_dipole_total1(s, a, l, zb);
-            float ell = s > 1e-3f / l ? 1.0f / s : 1e3f * l;
-            burley_h[c] = ell / lu_k_burley_shape(burley_a[c]);
+            burley_h[c] = lu_k_burley_h(burley_a[c], l);
             ctx.burley_a = burley_a[c];
             ctx.burley_h = burley_h[c];
             r_hi = 60.0 * burley_h[c];

@@ -98,6 +98,13 @@ double lu_bssrdf_eps_radius(lu_bssrdf_radial_fn f, const void *ctx, double r_lo,
 void lu_bssrdf_slab_totals(double sigma_sp, double sigma_a, double eta_top, double eta_bottom, double d, double *r_total,
                            double *t_total);
 
+/* The reduced albedo alpha' = sigma_s' / sigma_t' whose half-space total
+ * diffuse reflectance (the dipole's closed form, which the dipole, the
+ * thick-slab multipole and normalised diffusion all integrate to) is
+ * `albedo` behind relative index eta: bisection, the total rising
+ * monotonically in alpha'. albedo in (0, 1]. */
+double lu_bssrdf_invert_albedo(double albedo, double eta);
+
 /* ---- multi-layer combination (frequency domain) ------------------------------ */
 
 /* A layer's spectra on a fft_size^2 grid of spacing h, origin at texel
