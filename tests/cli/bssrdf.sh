@@ -37,6 +37,9 @@ for prof in dipole burley; do
     printf "  half-space, %s: mean radiance %s, expected %s\n", p, $NF, w; exit !($NF > 0.98 * w && $NF < 1.02 * w) }' ||
     { echo "FAIL: $prof half-space radiance"; exit 1; }
 done
+"$lucent" profile --preset marble --model pbd >"$tmp/q.txt"
+grep -q "model pbd, 512 entries" "$tmp/q.txt" || { echo "FAIL: pbd profile"; cat "$tmp/q.txt"; exit 1; }
+"$lucent" profile --preset marble --model nosuch >/dev/null 2>&1 && { echo "FAIL: unknown model accepted"; exit 1; }
 for b in cpu gpu; do
   "$lucent" render "$src/scenes/bssrdf_spheres.json" --method bssrdf --backend $b --size 48x30 \
     --set bssrdf.splats=600 --set bssrdf.profile=multipole -o "$tmp/$b.exr" 2>/dev/null

@@ -16,7 +16,8 @@
 typedef enum lu_bssrdf_model {
     LU_BSSRDF_DIPOLE = 0,
     LU_BSSRDF_MULTIPOLE = 1,
-    LU_BSSRDF_BURLEY = 2
+    LU_BSSRDF_BURLEY = 2,
+    LU_BSSRDF_PBD = 3     /* photon beam diffusion + single scattering (profile_pbd.h), 1D */
 } lu_bssrdf_model;
 
 /* One homogeneous layer. */
@@ -60,7 +61,8 @@ typedef struct lu_bssrdf_profile {
      * so that interpolating between rows stays accurate. */
     float t_decay[3];
     /* Energy bookkeeping (kind 0; kind 1: the thickest row's reflectance): */
-    double total_closed[3];   /* closed form (dipole, Burley: the albedo; multipole: 1D Green's function) */
+    double total_closed[3];   /* closed form (dipole, Burley: the albedo; multipole: 1D Green's function;
+                               * pbd: the (albedo, radius) table's own integral) */
     double total_numeric[3];  /* Simpson of 2 pi r R(r) over [0, infinity) in log r */
     double total_table[3];    /* 2 pi r times the table as interpolated, over [0, r_max] */
 } lu_bssrdf_profile;
