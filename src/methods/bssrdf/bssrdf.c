@@ -595,7 +595,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
         r = prepare_env_samples(st, scene, &st->t[i], Lsum, err);
         if (r == LU_OK && st->p[P_STATS] != 0.0) {
             const lu_relax_stats *rs = &st->t[i].relax;
-            fprintf(stderr,
+            lu_log_msg(LU_LOG_INFO,
                     "bssrdf: object %d: %d environment samples, relaxation %d iterations (%s, last RMS move %.2e r) in "
                     "%.2f s, nearest-neighbour CV %.3f -> %.3f\n",
                     st->t[i].object, st->t[i].env_count, rs->iterations, rs->converged ? "converged" : "not converged",
@@ -606,7 +606,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_bssrdf_gpu_create(&st->gpu, err);
     if (r == LU_OK && st->p[P_STATS] != 0.0)
         for (int i = 0; i < st->tcount; i++)
-            fprintf(stderr,
+            lu_log_msg(LU_LOG_INFO,
                     "bssrdf: object %d: %s profile, %dx%d table, r_max %.4g (T: %.4g up to d = %.4g) scene units, "
                     "mfp %.4g\n",
                     st->t[i].object, st->t[i].prof.kind ? "2D" : "1D", st->t[i].prof.nr, st->t[i].prof.nd,
@@ -1282,7 +1282,7 @@ static lu_result bssrdf_render(void *state, const lu_frame *frame, lu_image *out
     st->stats.ms_binning = 1e3 * (t4 - t3);
     st->stats.ms_splat = 1e3 * (t5 - t4);
     if (st->p[P_STATS] != 0.0)
-        fprintf(stderr,
+        lu_log_msg(LU_LOG_INFO,
                 "bssrdf: frame %dx%d (%s): maps %.1f ms (%lld texels), samples %.1f ms (%d splats, %d environment), "
                 "G-buffer %.1f ms, binning %.1f ms (%lld splat-tile pairs), splat+shade %.1f ms; processor time %.1f ms\n",
                 c->width, c->height, lu_backend_name(st->backend), st->stats.ms_maps, st->stats.map_texels,
