@@ -36,6 +36,7 @@
 #include <sys/resource.h>
 
 #include "methods/bssrdf/bssrdf.h"
+#include "core/quadrature.h"
 #include "methods/common/tile_bins.h"
 #include "methods/bssrdf/bssrdf_gpu.h"
 #include "methods/bssrdf/bssrdf_profile.h"
@@ -221,29 +222,14 @@ typedef struct bssrdf_state {
 static double legendre(int l, double x) { return l == 0 ? 1.0 : (l == 1 ? x : 0.5 * (3.0 * x * x - 1.0)); }
 
 void lu_bssrdf_sh_kernel(float eta, double a[3]) {
-    /* Gauss-Legendre, 48 nodes on [0, 1]: the integrand is smooth. */
+    /* Gauss-Legendre, 48 nodes on [0, 1]: the integrand is smooth. Computed
+     * per call (cheap, and safe with renderers on several threads). */
     enum { N = 48 };
-    static double gx[N], gw[N];
-    static bool ready = false;
-    if (!ready) {
-        for (int i = 0; i < N; i++) {
-            double z = cos(M_PI * (i + 0.75) / (N + 0.5)), dp = 1.0;
-            for (int it = 0; it < 100; it++) {
-                double p0 = 1.0, p1 = z;
-                for (int k = 2; k <= N; k++) {
-                    double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-                    p0 = p1;
-                    p1 = p2;
-                }
-                dp = N * (z * p1 - p0) / (z * z - 1);
-                double dz = p1 / dp;
-                z -= dz;
-                if (fabs(dz) < 1e-15) break;
-            }
-            gx[i] = 0.5 * (z + 1.0);
-            gw[i] = 1.0 / ((1 - z * z) * dp * dp);   /* half of 2 / ((1 - z^2) P'^2) */
-        }
-        ready = true;
+    double gx[N], gw[N];
+    lu_gauss_legendre(N, gx, gw);
+    for (int i = 0; i < N; i++) {
+        gx[i] = 0.5 * (gx[i] + 1.0);
+        gw[i] *= 0.5;
     }
     for (int l = 0; l < 3; l++) {
         double s = 0.0;

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/quadrature.h"
 #include "methods/bssrdf/lu_diffusion.h"
 #include "methods/bssrdf/profile_pbd.h"
 #include "kernels/lu_optics.h"
@@ -807,23 +808,7 @@ lu_result lu_bssrdf_profile_prefilter(lu_bssrdf_profile *p, int levels, float rh
     p->levels = levels;
     p->rho0 = rho0;
     prefilter_job j = {p, levels, rho0, per, {0}, {0}};
-    for (int i = 0; i < PREFILTER_NG; i++) {
-        double z = cos(M_PI * (i + 0.75) / (PREFILTER_NG + 0.5)), dp = 1.0;
-        for (int it = 0; it < 100; it++) {
-            double p0 = 1.0, p1 = z;
-            for (int k = 2; k <= PREFILTER_NG; k++) {
-                double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = PREFILTER_NG * (z * p1 - p0) / (z * z - 1);
-            double dz = p1 / dp;
-            z -= dz;
-            if (fabs(dz) < 1e-15) break;
-        }
-        j.gx[i] = z;
-        j.gw[i] = 2.0 / ((1 - z * z) * dp * dp);
-    }
+    lu_gauss_legendre(PREFILTER_NG, j.gx, j.gw);
     lu_parallel_for((int64_t)(per / p->nr), 1, prefilter_rows, &j, NULL);
     return LU_OK;
 }
