@@ -78,6 +78,16 @@ static void print_scene(const lu_scene *s) {
         if (m->has_boundary) {
             printf("      boundary  eta %.3g, %u triangles\n", m->eta, m->boundary.triangle_count);
         }
+        if (m->emission != LU_EMISSION_NONE) {
+            lu_vec3 le = lu_medium_emission_max(m);
+            static const char *const kinds[] = {"none", "constant", "grid", "temperature"};
+            printf("      emission  %s, Le up to [%.4g, %.4g, %.4g]", kinds[m->emission], le.x, le.y, le.z);
+            if (m->emission == LU_EMISSION_BLACKBODY)
+                printf(", T' = (T - %g) * %g in [%.4g, %.4g] K", m->temp_offset, m->temp_scale,
+                       (m->emission_grid.min_value - m->temp_offset) * m->temp_scale,
+                       (m->emission_grid.max_value - m->temp_offset) * m->temp_scale);
+            printf("\n");
+        }
         print_box("      ", m->bounds);
     }
     printf("objects   %d\n", s->object_count);

@@ -40,6 +40,8 @@ static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
     return 1.0f / (c->sigma_t * (p.z / CELLS - c->z0));
 }
 static inline int lu_k_medium_count(const struct lu_k_ctx *c) { return 1; }
+/* Non-emissive media here (the emission tests are in test_emission.c). */
+static inline lu_vec3 lu_k_emission(const struct lu_k_ctx *c, int m, lu_vec3 p) { return lu_v3s(0.0f); }
 static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { return c->km; }
 static inline int lu_k_light_count(const struct lu_k_ctx *c) { return 1; }
 static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) { return c->kl; }

@@ -24,6 +24,7 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "#include \"methods/common/lu_lightview.h\"\n"
                                 "int lu_k_medium_count(LU_CTX_PARAM) { return 1; }\n"
                                 "lu_k_medium lu_k_medium_get(LU_CTX_PARAM, int m) { lu_k_medium k; k.constant = 1; return k; }\n"
+                                "vec3 lu_k_emission(LU_CTX_PARAM, int m, vec3 p) { return p; }\n"
                                 "int lu_k_light_count(LU_CTX_PARAM) { return 1; }\n"
                                 "lu_k_light lu_k_light_get(LU_CTX_PARAM, int l) { lu_k_light k; k.type = 0; return k; }\n"
                                 "int lu_k_rm_view_first(LU_CTX_PARAM, int l) { return 0; }\n"

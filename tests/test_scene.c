@@ -3,6 +3,7 @@
 #include <lucent/lucent.h>
 
 #include <dirent.h>
+#include <sys/stat.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -94,6 +95,153 @@ static void test_strict_errors(void) {
 #undef TMAT
     /* Syntax errors report line and column. */
     expect_error("{\n  \"camera\": {\n    \"position\": [0, 0, 5],,\n  }\n}", LU_ERR_FORMAT, "bad.json:3:", "syntax");
+}
+
+/* Emission keys under a medium: malformed input names the key, and a loaded
+ * emission has the documented kind, defaults and grid. */
+#define GRID_MEDIUM(EMISSION)                                                                                          \
+    "{" CAMERA ", \"media\": [{\"density\": {\"procedural\": \"sphere\", \"resolution\": 8}, \"sigma_s\": 1" EMISSION "}]}"
+static void test_emission_keys(void) {
+    expect_error(GRID_MEDIUM(", \"emission\": {\"colour\": 1}"), LU_ERR_SCENE, "$.media[0].emission.colour",
+                 "unknown key");
+    expect_error(GRID_MEDIUM(", \"emission\": 3"), LU_ERR_SCENE, "$.media[0].emission", "object");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"scale\": -1}"), LU_ERR_RANGE, "$.media[0].emission.scale", NULL);
+    expect_error(GRID_MEDIUM(", \"emission\": {\"color\": [1, 2]}"), LU_ERR_SCENE, "$.media[0].emission.color",
+                 NULL);
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature_scale\": 2}"), LU_ERR_SCENE, "$.media[0].emission",
+                 "need a \"temperature\"");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"grid\": {\"procedural\": \"sphere\", \"resolution\": 8},"
+                             " \"temperature\": {\"procedural\": \"sphere\", \"resolution\": 8}}"),
+                 LU_ERR_SCENE, "$.media[0].emission", "not both");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature\": {\"constant\": 1500}}"), LU_ERR_SCENE,
+                 "$.media[0].emission.temperature", "\"file\", \"raw\"");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature\": [1]}"), LU_ERR_SCENE,
+                 "$.media[0].emission.temperature", "object");
+    /* Another index space: other voxels, or an offset of a fraction of a voxel (0.1 of 0.25). */
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature\": {\"procedural\": \"sphere\", \"resolution\": 9}}"),
+                 LU_ERR_SCENE, "$.media[0].emission.temperature", "share one index space");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"grid\": {\"procedural\": \"sphere\", \"resolution\": 8,"
+                             " \"center\": [0.1, 0, 0]}}"),
+                 LU_ERR_SCENE, "$.media[0].emission.grid", "share one index space");
+    expect_error(GRID_MEDIUM(", \"emission\": {\"temperature\": {\"file\": \"missing_t.nvdb\"}}"), LU_ERR_IO,
+                 "$.media[0].emission.temperature", "missing_t.nvdb");
+    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": 1,"
+                 " \"boundary\": {\"mesh\": {\"procedural\": \"box\"}},"
+                 " \"emission\": {\"grid\": {\"procedural\": \"sphere\", \"resolution\": 8}}}]}",
+                 LU_ERR_SCENE, "$.media[0].emission.grid", "constant density");
+
+    lu_scene s;
+    lu_error err = {0};
+    CHECK_OK(lu_scene_load_string(GRID_MEDIUM(", \"emission\": {\"temperature\": {\"procedural\": \"sphere\","
+                                              " \"resolution\": 8, \"value\": 2}, \"temperature_scale\": 1000,"
+                                              " \"temperature_offset\": 0.5, \"color\": [1, 0.5, 0.25]}"),
+                                  "ok.json", &s, &err),
+             &err);
+    if (err.code != LU_OK) return;
+    const lu_medium *m = &s.media[0];
+    CHECK(m->emission == LU_EMISSION_BLACKBODY);
+    CHECK(m->le_scale == 1.0f && m->temp_scale == 1000.0f && m->temp_offset == 0.5f && m->le_color.y == 0.5f);
+    /* At the sphere's centre the temperature grid holds 2: T' = (2 - 0.5) * 1000. */
+    lu_vec3 c = lu_v3(3.5f, 3.5f, 3.5f);
+    float t = lu_grid_sample(&m->emission_grid, c);
+    CHECK_NEAR(t, 2.0, 1e-6);
+    lu_vec3 le = lu_medium_emission(m, c), bb = lu_blackbody_rgb(1500.0f);
+    CHECK_REL(le.x, bb.x, 1e-6);
+    CHECK_REL(le.y, 0.5 * bb.y, 1e-6);
+    CHECK_REL(le.z, 0.25 * bb.z, 1e-6);
+    lu_scene_destroy(&s);
+    /* Offset by whole voxels (0.5 = 2 voxels of 0.25 along x): re-embedded
+     * over the density's voxels, e'(i) = e(i - 2), 0 where e has none. */
+    CHECK_OK(lu_scene_load_string(GRID_MEDIUM(", \"emission\": {\"grid\": {\"procedural\": \"sphere\", \"resolution\": 8,"
+                                              " \"center\": [0.5, 0, 0]}}"),
+                                  "ok.json", &s, &err),
+             &err);
+    if (err.code != LU_OK) return;
+    {
+        lu_grid e = {0};
+        lu_kvlist kv = {0};
+        const double res = 8, center[3] = {0.5, 0, 0};
+        CHECK_OK(lu_kv_set_number(&kv, "resolution", &res, 1, &err), &err);
+        CHECK_OK(lu_kv_set_number(&kv, "center", center, 3, &err), &err);
+        CHECK_OK(lu_grid_procedural("sphere", &kv, &e, "test", &err), &err);
+        const lu_grid *g = &s.media[0].emission_grid;
+        CHECK(g->nx == 8 && g->ny == 8 && g->nz == 8);
+        int mismatches = 0;
+        for (int z = 0; z < 8; z++)
+            for (int y = 0; y < 8; y++)
+                for (int x = 0; x < 8; x++) mismatches += lu_grid_at(g, x, y, z) != lu_grid_at(&e, x - 2, y, z);
+        CHECK_MSG(mismatches == 0, "%d voxels differ from the shifted grid", mismatches);
+        /* the shift is visible: the density sphere is centred at voxel 3.5, this one at 5.5 */
+        CHECK(lu_grid_at(g, 6, 3, 3) > lu_grid_at(g, 1, 3, 3));
+        lu_grid_destroy(&e);
+        lu_kv_free(&kv);
+    }
+    lu_scene_destroy(&s);
+    CHECK_OK(lu_scene_load_string(GRID_MEDIUM(", \"emission\": {}"), "ok.json", &s, &err), &err);
+    if (err.code != LU_OK) return;
+    CHECK(s.media[0].emission == LU_EMISSION_CONSTANT);
+    CHECK(lu_medium_emission(&s.media[0], lu_v3s(0.0f)).x == 1.0f);
+    lu_scene_destroy(&s);
+}
+
+/* A temperature grid from its own .nvdb file, named: its active voxels
+ * extend one voxel further than the density's on every side, so it is
+ * loaded over a box offset by -1 voxel and re-embedded; a file of other
+ * voxels is refused. */
+static void test_emission_nvdb(void) {
+    char dir[512], dpath[600], tpath[600], bpath[600], json[2400];
+    snprintf(dir, sizeof dir, "%s/emission_nvdb_test", LU_BINARY_DIR);
+    lu_test_remove_dir(dir);
+    CHECK(mkdir(dir, 0755) == 0);
+    snprintf(dpath, sizeof dpath, "%s/density.nvdb", dir);
+    snprintf(tpath, sizeof tpath, "%s/temperature.nvdb", dir);
+    snprintf(bpath, sizeof bpath, "%s/coarse.nvdb", dir);
+    lu_error err = {0};
+    lu_grid d = {0}, t = {0}, b = {0};
+    CHECK_OK(lu_grid_alloc(&d, 8, 8, 8, &err), &err);
+    CHECK_OK(lu_grid_alloc(&t, 10, 10, 10, &err), &err);
+    CHECK_OK(lu_grid_alloc(&b, 8, 8, 8, &err), &err);
+    if (err.code != LU_OK) return;
+    for (int i = 0; i < 512; i++) d.data[i] = 1.0f, b.data[i] = 1.0f;
+    for (int z = 0; z < 10; z++)
+        for (int y = 0; y < 10; y++)
+            for (int x = 0; x < 10; x++) t.data[(z * 10 + y) * 10 + x] = 1000.0f + 100.0f * x + 10.0f * y + z;
+    d.index_to_world = lu_affine_scale(lu_v3s(0.1f));
+    lu_affine sh = lu_affine_translate(lu_v3s(-0.1f)), sc = lu_affine_scale(lu_v3s(0.1f));
+    t.index_to_world = lu_affine_mul(&sh, &sc);
+    b.index_to_world = lu_affine_scale(lu_v3s(0.2f));
+    snprintf(t.name, sizeof t.name, "temperature");
+    CHECK_OK(lu_grid_save_nvdb(&d, dpath, &err), &err);
+    CHECK_OK(lu_grid_save_nvdb(&t, tpath, &err), &err);
+    CHECK_OK(lu_grid_save_nvdb(&b, bpath, &err), &err);
+    snprintf(json, sizeof json,
+             "{" CAMERA ", \"media\": [{\"density\": {\"file\": \"%s\"}, \"sigma_s\": 1,"
+             " \"emission\": {\"temperature\": {\"file\": \"%s\", \"grid\": \"temperature\"}}}]}",
+             dpath, tpath);
+    lu_scene s;
+    CHECK_OK(lu_scene_load_string(json, "ok.json", &s, &err), &err);
+    if (err.code == LU_OK) {
+        const lu_grid *g = &s.media[0].emission_grid;
+        CHECK(g->nx == 8 && g->ny == 8 && g->nz == 8);
+        /* density voxel (x, y, z) is temperature voxel (x + 1, y + 1, z + 1) */
+        CHECK(lu_grid_at(g, 0, 0, 0) == 1111.0f);
+        CHECK(lu_grid_at(g, 7, 2, 5) == 1000.0f + 800.0f + 30.0f + 6.0f);
+        lu_scene_destroy(&s);
+    }
+    snprintf(json, sizeof json,
+             "{" CAMERA ", \"media\": [{\"density\": {\"file\": \"%s\"}, \"sigma_s\": 1,"
+             " \"emission\": {\"temperature\": {\"file\": \"%s\", \"grid\": \"no_such_grid\"}}}]}",
+             dpath, tpath);
+    expect_error(json, LU_ERR_INVALID_ARG, "$.media[0].emission.temperature", "no_such_grid");
+    snprintf(json, sizeof json,
+             "{" CAMERA ", \"media\": [{\"density\": {\"file\": \"%s\"}, \"sigma_s\": 1,"
+             " \"emission\": {\"grid\": {\"file\": \"%s\"}}}]}",
+             dpath, bpath);
+    expect_error(json, LU_ERR_SCENE, "$.media[0].emission.grid", "share one index space");
+    lu_grid_destroy(&d);
+    lu_grid_destroy(&t);
+    lu_grid_destroy(&b);
+    lu_test_remove_dir(dir);
 }
 
 static void test_transform_and_translucent(void) {
@@ -266,6 +414,8 @@ static void test_builder(void) {
 int main(void) {
     RUN_TEST(test_builder);
     RUN_TEST(test_strict_errors);
+    RUN_TEST(test_emission_keys);
+    RUN_TEST(test_emission_nvdb);
     RUN_TEST(test_transform_and_translucent);
     RUN_TEST(test_grid_transform);
     RUN_TEST(test_bundled_scenes_load);

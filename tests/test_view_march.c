@@ -47,6 +47,8 @@ static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int b
 }
 static inline int lu_k_medium_count(const struct lu_k_ctx *c) { return 1; }
 static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { return c->km; }
+/* Non-emissive media here (the emission tests are in test_emission.c). */
+static inline lu_vec3 lu_k_emission(const struct lu_k_ctx *c, int m, lu_vec3 p) { return lu_v3s(0.0f); }
 static inline int lu_k_light_count(const struct lu_k_ctx *c) { return 1; }
 static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) { return c->kl; }
 static inline float lu_k_shadow_depth(const struct lu_k_ctx *c, int map, int i, int j) { return 1e30f; }

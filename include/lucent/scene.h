@@ -99,6 +99,20 @@ float lu_sigma_a_from_ior_imag(float k, float lambda_nm);
 
 typedef enum lu_density_kind { LU_DENSITY_GRID = 0, LU_DENSITY_CONSTANT } lu_density_kind;
 
+/* Emission (docs/volumes.md "Emission"): the medium's source term is
+ * sigma_a * density * Le(x) (pbrt-v4's convention: emission enters the
+ * radiative transfer equation as absorbed-and-re-emitted radiance), with
+ *   CONSTANT   Le = le_scale * le_color
+ *   GRID       Le = le_scale * le_color * e(x)       e: a grid in the density's index space
+ *   BLACKBODY  Le = le_scale * le_color * B(T')      T' = (T(x) - temp_offset) * temp_scale Kelvin,
+ *              T a grid in the density's index space, B lu_blackbody_rgb (0 for T' <= 100 K). */
+typedef enum lu_emission_kind {
+    LU_EMISSION_NONE = 0,
+    LU_EMISSION_CONSTANT,
+    LU_EMISSION_GRID,
+    LU_EMISSION_BLACKBODY
+} lu_emission_kind;
+
 typedef struct lu_medium {
     lu_density_kind kind;
     float constant;             /* LU_DENSITY_CONSTANT: density everywhere inside the boundary */
@@ -113,7 +127,30 @@ typedef struct lu_medium {
     lu_material surface;        /* boundary reflection, weighted by (1 - F_t) */
     lu_aabb bounds;             /* world box containing all non-zero density */
     int from_object;            /* index of the translucent object it stands for, or -1 */
+    lu_emission_kind emission;  /* LU_EMISSION_NONE: not emissive */
+    lu_vec3 le_color;           /* default [1, 1, 1] */
+    float le_scale;             /* default 1 */
+    float temp_scale, temp_offset; /* BLACKBODY; defaults 1, 0 */
+    lu_grid emission_grid;      /* GRID: e(x); BLACKBODY: T(x) in Kelvin before the mapping */
 } lu_medium;
+
+/* Linear sRGB (D65) of the blackbody spectrum at T Kelvin, normalised to
+ * 1 at its peak wavelength as pbrt-v4's BlackbodySpectrum is: Planck's law
+ * integrated against the CIE 1931 2-degree colour matching functions
+ * (Wyman, Sloan and Shirley 2013's multi-lobe fit) over 360-830 nm, divided
+ * by the integral of y-bar (a flat spectrum of 1 has Y = 1), then XYZ ->
+ * linear sRGB. Tabulated once over log T in [100, 100000] K and interpolated;
+ * 0 at or below 100 K, clamped at 100000 K. Channels can be slightly
+ * negative (the locus leaves the sRGB gamut below ~1700 K); they are
+ * clamped at 0. */
+lu_vec3 lu_blackbody_rgb(float kelvin);
+/* The same without the table: direct quadrature (slow; tests and the table). */
+lu_vec3 lu_blackbody_rgb_exact(double kelvin);
+/* Le of medium m at index-space point p (before sigma_a and density):
+ * 0 for a non-emissive medium. */
+lu_vec3 lu_medium_emission(const lu_medium *m, lu_vec3 p_index);
+/* Largest Le anywhere in the medium (an upper bound: grids by their max value). */
+lu_vec3 lu_medium_emission_max(const lu_medium *m);
 
 typedef struct lu_object {
     lu_mesh mesh;               /* world space */
@@ -173,6 +210,11 @@ typedef struct lu_medium_desc {
     lu_mesh *boundary;             /* NULL: none (grids only); else moved in, transformed by transform */
     float eta;                     /* boundary index of refraction in [1, 4]; 0: 1.5 */
     const lu_material *surface;    /* boundary reflection (diffuse type); NULL: a clear glossy coat */
+    lu_emission_kind emission;     /* LU_EMISSION_NONE (0): not emissive; see lu_emission_kind */
+    lu_grid *emission_grid;        /* GRID, BLACKBODY: moved in; the density grid's size and index space */
+    lu_vec3 le_color;              /* zero: [1, 1, 1] */
+    float le_scale;                /* zero: 1 */
+    float temp_scale, temp_offset; /* BLACKBODY: temp_scale zero: 1 */
 } lu_medium_desc;
 
 /* The default material: diffuse, albedo 0.8, no specular, shininess 32. */

@@ -2,9 +2,9 @@
  *
  * One record per lu_medium: the world->index affine map, the index-space
  * support of its density (where it can be non-zero), its world box,
- * coefficients and phase. Density itself comes from the backend hook
+ * coefficients, phase and emission kind. Density (and Le) itself comes from the backend hook
  * lu_k_density(LU_CTX, m, p_index) (lu_kernel.h); constant media return
- * `density_scale` there. CPU drivers build records with lu_medium_to_kernel
+ * `density_scale` there; Le comes from lu_k_emission(LU_CTX, m, p_index). CPU drivers build records with lu_medium_to_kernel
  * (methods/common/gpu_scene.h); the GPU reads the same fields from the scene buffer
  * (kernels/lu_scene_gpu.glsl), so both backends see identical numbers. */
 #ifndef LU_MEDIUM_H
@@ -24,6 +24,8 @@ struct lu_k_medium {
     int constant;                /* 1: density_scale everywhere, no grid */
     int bounded;                 /* 1: the medium exists only inside a boundary mesh */
     int max_pieces;              /* DDA bound for lu_k_optical_depth along any ray */
+    vec3 le;                     /* le_scale * le_color (include/lucent/scene.h) */
+    int emission;                /* lu_emission_kind: 0 none, 1 constant Le = le, 2 grid, 3 blackbody */
 };
 LU_TYPEDEF(lu_k_medium)
 

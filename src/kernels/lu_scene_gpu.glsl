@@ -94,6 +94,59 @@ float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index) {
     return v * s.w;
 }
 
+/* Value k of the data region (lu_scene_layout.h). */
+float lu_scene_data(int k) { return lu_scene_media[LU_SCENE_MAJORANT_DATA + k / 4][k % 4]; }
+
+/* Voxel (x, y, z) of an emission grid at offset o, 0 outside (lu_grid_at). */
+float lu_scene_emission_at(int o, int nx, int ny, int nz, int x, int y, int z) {
+    if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) return 0.0f;
+    return lu_scene_data(o + (z * ny + y) * nx + x);
+}
+
+/* lu_blackbody_rgb (src/volume/emission.c) from the table at offset o. */
+vec3 lu_scene_blackbody(float kelvin, int o) {
+    if (!(kelvin > 100.0f)) return vec3(0.0f);
+    float u = log(kelvin / 100.0f) / log(1000.0f) * float(LU_SCENE_BLACKBODY_N - 1);
+    int i = LU_SCENE_BLACKBODY_N - 2;
+    float f = 1.0f;
+    if (u < float(LU_SCENE_BLACKBODY_N - 1)) {
+        i = int(u);
+        f = u - float(i);
+    }
+    vec3 r;
+    for (int ch = 0; ch < 3; ch++) {
+        float a = lu_scene_data(o + 3 * i + ch), b = lu_scene_data(o + 3 * i + 3 + ch);
+        r[ch] = a > 0.0f && b > 0.0f ? exp(log(a) + f * (log(b) - log(a))) : a + f * (b - a);
+    }
+    return r;
+}
+
+/* Le of medium m at index-space p (before sigma_a and density): the
+ * record's le, times the trilinear emission grid (lu_grid_sample's
+ * arithmetic) or the blackbody colour of the mapped temperature. */
+vec3 lu_k_emission(LU_CTX_PARAM, int m, vec3 p) {
+    lu_k_medium md = lu_scene_medium(m);
+    if (md.emission <= 1) return md.emission == 1 ? md.le : vec3(0.0f);
+    vec4 h = lu_scene_media[LU_SCENE_EMISSION_HEADER + 2 * m];
+    vec4 h2 = lu_scene_media[LU_SCENE_EMISSION_HEADER + 2 * m + 1];
+    int nx = int(h.x), ny = int(h.y), nz = int(h.z), o = int(h.w);
+    if (!(p.x >= -1.0f && p.y >= -1.0f && p.z >= -1.0f && p.x <= float(nx) && p.y <= float(ny) && p.z <= float(nz)))
+        return vec3(0.0f);
+    int x = int(p.x + 1.0f) - 1, y = int(p.y + 1.0f) - 1, z = int(p.z + 1.0f) - 1;
+    float tx = p.x - float(x), ty = p.y - float(y), tz = p.z - float(z);
+    float c000 = lu_scene_emission_at(o, nx, ny, nz, x, y, z), c100 = lu_scene_emission_at(o, nx, ny, nz, x + 1, y, z);
+    float c010 = lu_scene_emission_at(o, nx, ny, nz, x, y + 1, z), c110 = lu_scene_emission_at(o, nx, ny, nz, x + 1, y + 1, z);
+    float c001 = lu_scene_emission_at(o, nx, ny, nz, x, y, z + 1), c101 = lu_scene_emission_at(o, nx, ny, nz, x + 1, y, z + 1);
+    float c011 = lu_scene_emission_at(o, nx, ny, nz, x, y + 1, z + 1);
+    float c111 = lu_scene_emission_at(o, nx, ny, nz, x + 1, y + 1, z + 1);
+    float c00 = c000 + tx * (c100 - c000), c10 = c010 + tx * (c110 - c010);
+    float c01 = c001 + tx * (c101 - c001), c11 = c011 + tx * (c111 - c011);
+    float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
+    float v = c0 + tz * (c1 - c0);
+    if (md.emission == 2) return md.le * v;
+    return md.le * lu_scene_blackbody((v - h2.y) * h2.x, int(h2.z));
+}
+
 /* Majorant of block (bx, by, bz) of medium m (lu_scene_layout.h; 0 outside
  * its block grid; a constant medium: its density), the hook of
  * methods/common/lu_march_blocks.h and the tracking kernels. */

@@ -17,7 +17,7 @@
 #define LU_SCENE_UNIT_FREE 8        /* first texture unit a method may use */
 
 #define LU_SCENE_HEADER_VEC4 4
-#define LU_SCENE_MEDIUM_VEC4 9
+#define LU_SCENE_MEDIUM_VEC4 10
 #define LU_SCENE_LIGHT_VEC4 3
 
 /* The records, declared once: each table lists a kernel struct's fields
@@ -35,7 +35,8 @@
     XYZ(5, sigma_a) WF(5, g)                                                                                           \
     XYZ(6, sigma_s) WI(6, constant)                                                                                    \
     XYZ(7, bounds_lo) WI(7, bounded)                                                                                   \
-    XYZ(8, bounds_hi) WF(8, eta)
+    XYZ(8, bounds_hi) WF(8, eta)                                                                                       \
+    XYZ(9, le) WI(9, emission)
 #define LU_SCENE_LIGHT_RECORD(XYZ, WF, WI)                                                                            \
     XYZ(0, position) WI(0, type)                                                                                       \
     XYZ(1, direction) WF(1, cos_inner)                                                                                 \
@@ -53,6 +54,15 @@
  * from LU_SCENE_MAJORANT_DATA. */
 #define LU_SCENE_MAJORANT_BLOCK 8
 #define LU_SCENE_MAJORANT_HEADER (LU_SCENE_MAX_MEDIA * LU_SCENE_MEDIUM_VEC4)
-#define LU_SCENE_MAJORANT_DATA (LU_SCENE_MAJORANT_HEADER + LU_SCENE_MAX_MEDIA)
+/* Then two vec4 per medium for grid and temperature emission
+ * (include/lucent/scene.h) at LU_SCENE_EMISSION_HEADER + 2 m: (nx, ny, nz,
+ * offset of its first value) and (temperature_scale, temperature_offset,
+ * offset of the blackbody table, 0). The emission values (x fastest) and the
+ * table (LU_SCENE_BLACKBODY_N linear sRGB triples, the nodes of
+ * lu_blackbody_rgb) follow the majorant values in the same data region;
+ * every offset counts floats from LU_SCENE_MAJORANT_DATA. */
+#define LU_SCENE_EMISSION_HEADER (LU_SCENE_MAJORANT_HEADER + LU_SCENE_MAX_MEDIA)
+#define LU_SCENE_BLACKBODY_N 2048
+#define LU_SCENE_MAJORANT_DATA (LU_SCENE_EMISSION_HEADER + 2 * LU_SCENE_MAX_MEDIA)
 
 #endif

@@ -89,4 +89,16 @@ static inline lu_vec3 lu_env_lookup(const lu_image *im, float scale, lu_vec3 dir
     return lu_v3_scale(acc, scale);
 }
 
+/* LU_ERR_UNSUPPORTED naming the first emissive medium, for the methods that
+ * do not march the view ray (ddod, bssrdf); LU_OK when none emits. */
+static inline lu_result lu_refuse_emission(const lu_scene *scene, const char *method, lu_error *err) {
+    for (int m = 0; m < scene->medium_count; m++)
+        if (scene->media[m].emission != LU_EMISSION_NONE)
+            return lu_fail(err, LU_ERR_UNSUPPORTED,
+                           "%s: medium %d of %s is emissive, and %s does not march the view ray to add emission "
+                           "(use reference, pathtrace or a march method: raymarch, afm, gradient, rbf, pervoxel)",
+                           method, m, scene->path[0] ? scene->path : "the scene", method);
+    return LU_OK;
+}
+
 #endif

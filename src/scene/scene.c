@@ -10,6 +10,7 @@ void lu_scene_destroy(lu_scene *s) {
     for (int i = 0; i < s->light_count; i++) lu_image_destroy(&s->lights[i].env);
     for (int i = 0; i < s->medium_count; i++) {
         lu_grid_destroy(&s->media[i].grid);
+        lu_grid_destroy(&s->media[i].emission_grid);
         lu_mesh_destroy(&s->media[i].boundary);
     }
     for (int i = 0; i < s->object_count; i++) lu_mesh_destroy(&s->objects[i].mesh);

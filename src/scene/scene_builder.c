@@ -117,6 +117,11 @@ lu_result lu_scene_builder_add_medium(lu_scene_builder *b, const lu_medium_desc 
         memset(d->boundary, 0, sizeof *d->boundary);
         m.has_boundary = true;
     }
+    bool emission_grid = d->emission == LU_EMISSION_GRID || d->emission == LU_EMISSION_BLACKBODY;
+    if (emission_grid && d->emission_grid) {
+        m.emission_grid = *d->emission_grid;
+        memset(d->emission_grid, 0, sizeof *d->emission_grid);
+    }
     lu_affine xf = d->transform ? *d->transform : lu_affine_identity();
     lu_result r = LU_OK;
     if (d->kind != LU_DENSITY_GRID && d->kind != LU_DENSITY_CONSTANT)
@@ -131,11 +136,27 @@ lu_result lu_scene_builder_add_medium(lu_scene_builder *b, const lu_medium_desc 
         r = lu_fail(err, LU_ERR_RANGE, "boundary eta %g outside [1, 4]", d->eta);
     else if (m.has_boundary && d->surface && d->surface->type != LU_MATERIAL_DIFFUSE)
         r = lu_fail(err, LU_ERR_SCENE, "a boundary surface must be of type \"diffuse\"");
+    else if (d->emission != LU_EMISSION_NONE && d->emission != LU_EMISSION_CONSTANT && !emission_grid)
+        r = lu_fail(err, LU_ERR_INVALID_ARG, "emission kind %d is not an lu_emission_kind", (int)d->emission);
+    else if (emission_grid && (d->kind != LU_DENSITY_GRID || !m.emission_grid.data))
+        r = lu_fail(err, LU_ERR_SCENE, "an emission or temperature grid needs a grid density and a grid of its own");
+    else if (emission_grid && (m.emission_grid.nx != m.grid.nx || m.emission_grid.ny != m.grid.ny ||
+                               m.emission_grid.nz != m.grid.nz))
+        r = lu_fail(err, LU_ERR_SCENE, "the emission grid is %dx%dx%d, the density grid %dx%dx%d: they must share one index space",
+                    m.emission_grid.nx, m.emission_grid.ny, m.emission_grid.nz, m.grid.nx, m.grid.ny, m.grid.nz);
+    else if (d->le_scale < 0.0f || d->le_color.x < 0.0f || d->le_color.y < 0.0f || d->le_color.z < 0.0f)
+        r = lu_fail(err, LU_ERR_RANGE, "emission color and scale must be >= 0");
     if (r == LU_OK) {
         m.constant = d->constant;
         m.sigma_s = d->sigma_s;
         m.sigma_a = d->sigma_a;
         m.phase_g = d->phase_g;
+        m.emission = d->emission;
+        bool no_color = d->le_color.x == 0.0f && d->le_color.y == 0.0f && d->le_color.z == 0.0f;
+        m.le_color = no_color ? lu_v3s(1.0f) : d->le_color;
+        m.le_scale = d->le_scale != 0.0f ? d->le_scale : 1.0f;
+        m.temp_scale = d->temp_scale != 0.0f ? d->temp_scale : 1.0f;
+        m.temp_offset = d->temp_offset;
         if (m.kind == LU_DENSITY_GRID && m.grid.generation == 0) lu_grid_stamp_new(&m.grid);
         m.index_to_world = m.kind == LU_DENSITY_GRID ? lu_affine_mul(&xf, &m.grid.index_to_world) : xf;
         if (!lu_affine_invert(&m.index_to_world, &m.world_to_index))
@@ -145,6 +166,7 @@ lu_result lu_scene_builder_add_medium(lu_scene_builder *b, const lu_medium_desc 
         r = lu_fail(err, LU_ERR_NOMEM, "scene builder: out of memory");
     if (r != LU_OK) {
         lu_grid_destroy(&m.grid);
+        lu_grid_destroy(&m.emission_grid);
         lu_mesh_destroy(&m.boundary);
         return r;
     }

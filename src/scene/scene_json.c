@@ -490,6 +490,8 @@ static lu_result add_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_scen
 /* "density": {"constant": v} | {"file": "x.nvdb", "grid": "density"} |
  *            {"raw": "x.raw", "dims": [nx,ny,nz], "voxel_size": h, "origin": [x,y,z]} |
  *            {"procedural": NAME, ...params} */
+static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid);
+
 static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p, lu_medium *m) {
     const cJSON *d = cJSON_GetObjectItemCaseSensitive(parent, "density");
     jpath dp = jp_key(p, "density");
@@ -502,12 +504,18 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
         return get_float(c, d, &dp, "constant", 1.0, 0.0, 1e6, true, &m->constant);
     }
     m->kind = LU_DENSITY_GRID;
+    return parse_grid_source(c, d, &dp, true, &m->grid);
+}
+
+/* A grid from one of "file", "raw", "voxelize", "procedural" in object d (at path *pp). */
+static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid) {
+    jpath dp = *pp;
     if (cJSON_HasObjectItem(d, "file")) {
         static const char *const keys[] = {"file", "grid", NULL};
         TRY(check_object(c, d, &dp, keys));
-        const char *file, *grid;
+        const char *file, *gname;
         TRY(get_string(c, d, &dp, "file", true, &file));
-        TRY(get_string(c, d, &dp, "grid", false, &grid));
+        TRY(get_string(c, d, &dp, "grid", false, &gname));
         char path[1024];
         lu_path_resolve(c->file, file, path, sizeof path);
         if (!lu_path_has_suffix(path, ".nvdb")) {
@@ -516,7 +524,7 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
                               "\"%s\" is not a .nvdb file (convert OpenVDB with nanovdb_convert; raw grids use \"raw\")",
                               file);
         }
-        return wrap_loader(c, &dp, lu_grid_load_nvdb(path, grid, &m->grid, c->err));
+        return wrap_loader(c, &dp, lu_grid_load_nvdb(path, gname, grid, c->err));
     }
     if (cJSON_HasObjectItem(d, "raw")) {
         static const char *const keys[] = {"raw", "dims", "voxel_size", "origin", NULL};
@@ -534,9 +542,9 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
         }
         char path[1024];
         lu_path_resolve(c->file, file, path, sizeof path);
-        TRY(wrap_loader(c, &dp, lu_grid_load_raw(path, (int)dims.x, (int)dims.y, (int)dims.z, &m->grid, c->err)));
+        TRY(wrap_loader(c, &dp, lu_grid_load_raw(path, (int)dims.x, (int)dims.y, (int)dims.z, grid, c->err)));
         lu_affine s = lu_affine_scale(lu_v3s(h)), t = lu_affine_translate(origin);
-        m->grid.index_to_world = lu_affine_mul(&t, &s);
+        grid->index_to_world = lu_affine_mul(&t, &s);
         return LU_OK;
     }
     if (cJSON_HasObjectItem(d, "voxelize")) {
@@ -563,13 +571,13 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
             lu_vec3 pad = lu_v3s(lu_v3_maxc(lu_v3_sub(b.hi, b.lo)) / (float)res);
             b.lo = lu_v3_sub(b.lo, pad);
             b.hi = lu_v3_add(b.hi, pad);
-            r = lu_voxelize(acc, b, res, ss, &m->grid, c->err);
+            r = lu_voxelize(acc, b, res, ss, grid, c->err);
         }
         if (acc) lu_accel_destroy(acc);
         lu_mesh_destroy(&mesh);
         if (r != LU_OK) return wrap_loader(c, &dp, r);
-        for (size_t i = 0; i < (size_t)m->grid.nx * m->grid.ny * m->grid.nz; i++) m->grid.data[i] *= value;
-        lu_grid_update_range(&m->grid);
+        for (size_t i = 0; i < (size_t)grid->nx * grid->ny * grid->nz; i++) grid->data[i] *= value;
+        lu_grid_update_range(grid);
         return LU_OK;
     }
     if (cJSON_HasObjectItem(d, "procedural")) {
@@ -580,23 +588,118 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
         if (r == LU_OK) {
             char where[300];
             snprintf(where, sizeof where, "%s: %s", c->file, dp.s);
-            r = lu_grid_procedural(name, &params, &m->grid, where, c->err);
+            r = lu_grid_procedural(name, &params, grid, where, c->err);
         }
         lu_kv_free(&params);
         return r;
     }
-    return scene_fail(c, &dp, LU_ERR_SCENE,
-                      "expected one of \"constant\", \"file\", \"raw\", \"voxelize\", \"procedural\"");
+    return scene_fail(c, &dp, LU_ERR_SCENE, "expected one of %s\"file\", \"raw\", \"voxelize\", \"procedural\"",
+                      density ? "\"constant\", " : "");
+}
+
+static bool close_to(float x, float y, float scale) { return fabsf(x - y) <= 1e-5f * fmaxf(scale, fmaxf(fabsf(x), fabsf(y))); }
+
+/* Whether grid e lies in the index space of grid d: the same linear map,
+ * and e's voxel 0 at an integer voxel k of d (a NanoVDB grid is loaded
+ * over the box of its own active voxels, so two grids of one file share
+ * their index space up to such an offset). */
+static bool shared_index_space(const lu_grid *d, const lu_grid *e, int k[3]) {
+    const lu_affine *a = &d->index_to_world, *b = &e->index_to_world;
+    float scale = 0.0f;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) scale = fmaxf(scale, fabsf(a->m[i][j]));
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (!close_to(a->m[i][j], b->m[i][j], scale)) return false;
+    lu_affine inv;
+    if (!lu_affine_invert(a, &inv)) return false;
+    lu_vec3 o = lu_affine_point(&inv, lu_v3(b->m[0][3], b->m[1][3], b->m[2][3]));
+    for (int i = 0; i < 3; i++) {
+        float v = lu_v3_get(o, i), r = roundf(v);
+        if (fabsf(v - r) > 1e-3f) return false;
+        k[i] = (int)r;
+    }
+    return true;
+}
+
+/* e re-embedded over d's voxels: e'(i) = e(i - k), 0 outside e. Values of e
+ * outside d's box are dropped: the density is 0 there, and emission is
+ * weighted by density. */
+static lu_result embed_grid(parse_ctx *c, const jpath *p, const lu_grid *d, lu_grid *e, const int k[3]) {
+    if (k[0] == 0 && k[1] == 0 && k[2] == 0 && e->nx == d->nx && e->ny == d->ny && e->nz == d->nz) return LU_OK;
+    lu_grid g = {0};
+    lu_result r = lu_grid_alloc(&g, d->nx, d->ny, d->nz, c->err);
+    if (r != LU_OK) return scene_fail(c, p, r, "%s", c->err->message);
+    for (int z = 0; z < d->nz; z++)
+        for (int y = 0; y < d->ny; y++)
+            for (int x = 0; x < d->nx; x++)
+                g.data[((size_t)z * d->ny + y) * d->nx + x] = lu_grid_at(e, x - k[0], y - k[1], z - k[2]);
+    g.index_to_world = d->index_to_world;
+    memcpy(g.name, e->name, sizeof g.name);
+    lu_grid_update_range(&g);
+    lu_grid_destroy(e);
+    *e = g;
+    return LU_OK;
+}
+
+/* "emission": {"color": c, "scale": s} (constant Le) | {..., "grid": SOURCE} |
+ *             {..., "temperature": SOURCE, "temperature_scale": k, "temperature_offset": t0}
+ * SOURCE as a grid density (parse_grid_source), in the density's index space. */
+static lu_result parse_emission(parse_ctx *c, const cJSON *o, const jpath *p, lu_medium *m) {
+    const cJSON *e = cJSON_GetObjectItemCaseSensitive(o, "emission");
+    if (!e) return LU_OK;
+    jpath ep = jp_key(p, "emission");
+    static const char *const keys[] = {"color", "scale", "grid", "temperature", "temperature_scale",
+                                       "temperature_offset", NULL};
+    TRY(check_object(c, e, &ep, keys));
+    TRY(get_vec3(c, e, &ep, "color", lu_v3s(1), 0, 1e6, false, true, &m->le_color));
+    TRY(get_float(c, e, &ep, "scale", 1.0, 0.0, 1e9, false, &m->le_scale));
+    const cJSON *g = cJSON_GetObjectItemCaseSensitive(e, "grid");
+    const cJSON *t = cJSON_GetObjectItemCaseSensitive(e, "temperature");
+    if (g && t) return scene_fail(c, &ep, LU_ERR_SCENE, "give \"grid\" or \"temperature\", not both");
+    bool blackbody = t != NULL;
+    if (!blackbody && (cJSON_HasObjectItem(e, "temperature_scale") || cJSON_HasObjectItem(e, "temperature_offset")))
+        return scene_fail(c, &ep, LU_ERR_SCENE, "\"temperature_scale\" and \"temperature_offset\" need a \"temperature\" grid");
+    TRY(get_float(c, e, &ep, "temperature_scale", 1.0, 0.0, 1e9, false, &m->temp_scale));
+    TRY(get_float(c, e, &ep, "temperature_offset", 0.0, -1e9, 1e9, false, &m->temp_offset));
+    if (!g && !t) {
+        m->emission = LU_EMISSION_CONSTANT;
+        return LU_OK;
+    }
+    jpath gp = jp_key(&ep, blackbody ? "temperature" : "grid");
+    if (m->kind != LU_DENSITY_GRID)
+        return scene_fail(c, &gp, LU_ERR_SCENE,
+                          "a constant density has no index space for an emission grid (use a grid density, or a "
+                          "constant emission)");
+    if (!cJSON_IsObject(blackbody ? t : g)) return scene_fail(c, &gp, LU_ERR_SCENE, "expected an object");
+    m->emission = blackbody ? LU_EMISSION_BLACKBODY : LU_EMISSION_GRID;
+    TRY(parse_grid_source(c, blackbody ? t : g, &gp, false, &m->emission_grid));
+    int k[3];
+    if (!shared_index_space(&m->grid, &m->emission_grid, k)) {
+        const lu_affine *a = &m->grid.index_to_world, *b = &m->emission_grid.index_to_world;
+        return scene_fail(c, &gp, LU_ERR_SCENE,
+                          "this grid is %dx%dx%d with voxel (%g, %g, %g) at (%g, %g, %g), the density grid %dx%dx%d with "
+                          "voxel (%g, %g, %g) at (%g, %g, %g): the two must share one index space (the same voxels, "
+                          "offset by whole voxels at most)",
+                          m->emission_grid.nx, m->emission_grid.ny, m->emission_grid.nz, (double)b->m[0][0],
+                          (double)b->m[1][1], (double)b->m[2][2], (double)b->m[0][3], (double)b->m[1][3],
+                          (double)b->m[2][3], m->grid.nx, m->grid.ny, m->grid.nz, (double)a->m[0][0],
+                          (double)a->m[1][1], (double)a->m[2][2], (double)a->m[0][3], (double)a->m[1][3],
+                          (double)a->m[2][3]);
+    }
+    return embed_grid(c, &gp, &m->grid, &m->emission_grid, k);
 }
 
 static lu_result parse_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_medium *m, lu_affine *xf,
                               bool *surface_given) {
-    static const char *const keys[] = {"density", "sigma_s", "sigma_a", "phase_g", "transform", "boundary", NULL};
+    static const char *const keys[] = {"density", "sigma_s", "sigma_a", "phase_g", "transform", "boundary", "emission",
+                                       NULL};
     TRY(check_object(c, o, p, keys));
     TRY(parse_density(c, o, p, m));
     TRY(get_vec3(c, o, p, "sigma_s", lu_v3s(1), 0, 1e6, true, true, &m->sigma_s));
     TRY(get_vec3(c, o, p, "sigma_a", lu_v3s(0), 0, 1e6, false, true, &m->sigma_a));
     TRY(get_float(c, o, p, "phase_g", 0.0, -0.99, 0.99, false, &m->phase_g));
+    TRY(parse_emission(c, o, p, m));
     TRY(parse_transform(c, o, p, xf));
     const cJSON *bd = cJSON_GetObjectItemCaseSensitive(o, "boundary");
     if (bd) {
@@ -620,15 +723,24 @@ static lu_result add_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_sce
     lu_result r = parse_medium(c, o, p, &m, &xf, &surface_given);
     if (r != LU_OK) {
         lu_grid_destroy(&m.grid);
+        lu_grid_destroy(&m.emission_grid);
         lu_mesh_destroy(&m.boundary);
         return r;
+    }
+    /* A zero colour or scale is no emission (zero means "default" in the desc). */
+    if (m.le_scale == 0.0f || (m.le_color.x == 0.0f && m.le_color.y == 0.0f && m.le_color.z == 0.0f)) {
+        m.emission = LU_EMISSION_NONE;
+        lu_grid_destroy(&m.emission_grid);
     }
     lu_medium_desc d = {.kind = m.kind, .grid = &m.grid, .constant = m.constant, .sigma_s = m.sigma_s,
                         .sigma_a = m.sigma_a, .phase_g = m.phase_g, .transform = &xf,
                         .boundary = m.has_boundary ? &m.boundary : NULL, .eta = m.eta,
-                        .surface = surface_given ? &m.surface : NULL};
+                        .surface = surface_given ? &m.surface : NULL, .emission = m.emission,
+                        .emission_grid = &m.emission_grid, .le_color = m.le_color, .le_scale = m.le_scale,
+                        .temp_scale = m.temp_scale, .temp_offset = m.temp_offset};
     r = lu_scene_builder_add_medium(b, &d, c->err);
     lu_grid_destroy(&m.grid);   /* empty unless the builder refused the kind */
+    lu_grid_destroy(&m.emission_grid);
     return wrap_loader(c, p, r);
 }
 

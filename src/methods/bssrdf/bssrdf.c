@@ -489,6 +489,10 @@ static lu_result fill_env(bssrdf_state *st, const lu_scene *scene, double Lsum[2
 
 static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                                 lu_error *err) {
+    {
+        lu_result re = lu_refuse_emission(scene, "bssrdf", err);
+        if (re != LU_OK) return re;
+    }
     bssrdf_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     memcpy(st->p, params, sizeof st->p);

@@ -1,5 +1,6 @@
 /* The shared GPU scene (see gpu_scene.h). */
 #include "methods/common/gpu_scene.h"
+#include "volume/grid_internal.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -45,6 +46,8 @@ lu_k_medium lu_medium_to_kernel(const lu_medium *m) {
     k.constant = grid ? 0 : 1;
     k.bounded = m->has_boundary ? 1 : 0;
     k.max_pieces = grid ? m->grid.nx + m->grid.ny + m->grid.nz + 8 : 1;
+    k.emission = (int)m->emission;
+    k.le = m->emission != LU_EMISSION_NONE ? lu_v3_scale(m->le_color, m->le_scale) : lu_v3s(0.0f);
     return k;
 }
 
@@ -75,7 +78,21 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const l
     float *lights = lu_calloc((size_t)nl * LU_SCENE_LIGHT_VEC4 * 4, sizeof(float));
     size_t maj_floats = 0;
     for (int m = 0; m < gs->medium_count; m++) maj_floats += (size_t)gs->maj[m].nx * gs->maj[m].ny * gs->maj[m].nz;
-    size_t media_floats = (size_t)LU_SCENE_MAJORANT_DATA * 4 + (maj_floats + 3) / 4 * 4;
+    size_t emis_floats = 0;
+    for (int m = 0; m < gs->medium_count; m++) {
+        const lu_medium *md = &scene->media[m];
+        if (md->emission == LU_EMISSION_GRID || md->emission == LU_EMISSION_BLACKBODY)
+            emis_floats += (size_t)md->emission_grid.nx * md->emission_grid.ny * md->emission_grid.nz;
+    }
+    size_t table_floats = emis_floats ? 3 * LU_SCENE_BLACKBODY_N : 0;
+    size_t media_floats = (size_t)LU_SCENE_MAJORANT_DATA * 4 + (maj_floats + emis_floats + table_floats + 3) / 4 * 4;
+    if (maj_floats + emis_floats + table_floats >= (size_t)1 << 24) {
+        lu_free(lights);
+        return lu_fail(err, LU_ERR_LIMIT,
+                       "gpu scene: %zu floats of majorants and emission grids; the GPU buffer addresses at most 2^24 "
+                       "(offsets are exact floats)",
+                       maj_floats + emis_floats + table_floats);
+    }
     float *media = lu_calloc(media_floats, sizeof(float));
     if (!lights || !media) {
         lu_free(lights);
@@ -99,6 +116,26 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const l
         if (n) memcpy(media + (size_t)LU_SCENE_MAJORANT_DATA * 4 + at, mj->dmax, n * sizeof(float));
         at += n;
     }
+    /* Grid and temperature emission after the majorants, then the blackbody table. */
+    size_t table_at = at + emis_floats;
+    for (int m = 0; m < gs->medium_count; m++) {
+        const lu_medium *md = &scene->media[m];
+        if (md->emission != LU_EMISSION_GRID && md->emission != LU_EMISSION_BLACKBODY) continue;
+        const lu_grid *g = &md->emission_grid;
+        size_t n = (size_t)g->nx * g->ny * g->nz;
+        float *h = media + (size_t)(LU_SCENE_EMISSION_HEADER + 2 * m) * 4;
+        h[0] = (float)g->nx;
+        h[1] = (float)g->ny;
+        h[2] = (float)g->nz;
+        h[3] = (float)at;
+        h[4] = md->temp_scale;
+        h[5] = md->temp_offset;
+        h[6] = (float)table_at;
+        h[7] = 0.0f;
+        memcpy(media + (size_t)LU_SCENE_MAJORANT_DATA * 4 + at, g->data, n * sizeof(float));
+        at += n;
+    }
+    if (table_floats) lu_blackbody_table(media + (size_t)LU_SCENE_MAJORANT_DATA * 4 + table_at);
     for (int m = 0; m < scene->medium_count; m++) {
         const lu_k_medium k = rec->media[m];
         float *p = media + (size_t)m * LU_SCENE_MEDIUM_VEC4 * 4;

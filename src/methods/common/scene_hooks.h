@@ -15,6 +15,10 @@ static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
     const lu_medium *med = &c->media[m];
     return med->kind == LU_DENSITY_CONSTANT ? med->constant : lu_grid_sample(&med->grid, p);
 }
+/* Le of medium m at index-space p (before sigma_a and density). */
+static inline lu_vec3 lu_k_emission(const struct lu_k_ctx *c, int m, lu_vec3 p) {
+    return lu_medium_emission(&c->media[m], p);
+}
 static inline int lu_k_medium_count(const struct lu_k_ctx *c) { return c->nm; }
 static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { return c->km[m]; }
 static inline int lu_k_light_count(const struct lu_k_ctx *c) { return c->nl; }

@@ -238,6 +238,10 @@ static void env_update(ddod_state *st, const lu_scene *scene) {
 
 static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                               lu_error *err) {
+    {
+        lu_result re = lu_refuse_emission(scene, "ddod", err);
+        if (re != LU_OK) return re;
+    }
     ddod_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     st->backend = backend;

@@ -255,7 +255,8 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
         G.reflect |= scene->media[m].has_boundary;
     }
     st->stats.grid[0] = G.nx, st->stats.grid[1] = G.ny, st->stats.grid[2] = G.nz;
-    st->kctx = (struct lu_k_ctx){st->dens, st->km, st->nm, st->kl, st->nl, &st->mr, G, NULL, NULL, NULL, NULL, st->surf};
+    st->kctx = (struct lu_k_ctx){st->dens, st->km, st->nm, st->kl, st->nl, &st->mr, G, NULL, NULL, NULL, NULL, st->surf,
+                                 scene->media};
 
     lu_aabb mb = st->box;
     float diag = lu_aabb_valid(mb) ? lu_v3_len(lu_v3_sub(mb.hi, mb.lo)) : 1.0f;

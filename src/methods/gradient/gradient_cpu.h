@@ -27,10 +27,14 @@ struct lu_k_ctx {
     const int *cell_begin, *cell_items;
     const float *samples;
     const float *surf;            /* 8 floats per medium: boundary material */
+    const lu_medium *media;       /* the scene's, for emission */
 };
 
 static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
     return c->dens[m].data ? lu_grid_sample(&c->dens[m], p) : c->km[m].density_scale;
+}
+static inline lu_vec3 lu_k_emission(const struct lu_k_ctx *c, int m, lu_vec3 p) {
+    return lu_medium_emission(&c->media[m], p);
 }
 static inline int lu_k_medium_count(const struct lu_k_ctx *c) { return c->nm; }
 static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { return c->km[m]; }

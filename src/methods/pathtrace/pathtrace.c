@@ -788,6 +788,7 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                 L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), segment_nee(st, o, d, t_end, mask, rng)));
             fl = lu_pt_free_flight(st, o, d, t_end, mask, &beta, &r, hero, rng);
         }
+        L = lu_v3_add(L, fl.le);
         if (fl.event == LU_K_EVENT_ABSORB || lu_v3_maxc(beta) <= 0.0f) break;
 
         if (fl.event == LU_K_EVENT_SCATTER) {

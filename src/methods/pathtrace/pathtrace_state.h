@@ -174,6 +174,12 @@ typedef struct pt_flight {
     int event; /* LU_K_EVENT_SCATTER, or -1: reached t_end; LU_K_EVENT_ABSORB: path ended */
     int medium;
     float t;
+    /* Emission met on the way, already weighted: at every tentative
+     * collision x (real or null) of majorant mu, beta sigma_a(x) Le(x) /
+     * (mu avg(r)), beta and r as they stand before that collision's event
+     * (pbrt-v4's volumetric path tracer; unbiased for the integral of
+     * T sigma_a Le along the flight as null-collision estimators are). */
+    lu_vec3 le;
 } pt_flight;
 
 /* pathtrace_walk.c */

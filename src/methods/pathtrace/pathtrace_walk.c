@@ -56,7 +56,7 @@ pt_flight lu_pt_free_flight(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_en
                              lu_vec3 *r, int hero, lu_k_rng *rng) {
     pt_walker wk[PT_MAX_MEDIA];
     int n = 0;
-    pt_flight f = {-1, -1, t_end};
+    pt_flight f = {-1, -1, t_end, {0.0f, 0.0f, 0.0f}};
     for (int m = 0; m < st->medium_count; m++) {
         const pt_medium *pm = &st->media[m];
         float a, b;
@@ -100,6 +100,11 @@ static bool flight_event(const pt_state *st, pt_walker *w, lu_vec3 *beta, lu_vec
         mu = pm->sigma_max * w->w.dmax;
     }
     lu_vec3 sa = lu_v3_scale(med->sigma_a, dens), ss = lu_v3_scale(med->sigma_s, dens);
+    if (med->emission != LU_EMISSION_NONE && dens > 0.0f && mu > 0.0f) {
+        lu_vec3 p = pm->constant ? lu_v3s(0.0f) : lu_v3_madd(w->oi, w->di, tk);
+        lu_vec3 e = lu_v3_mul(sa, lu_medium_emission(med, p));
+        f->le = lu_v3_add(f->le, lu_v3_mul(*beta, lu_v3_scale(e, 1.0f / (mu * lu_v3_avg(*r)))));
+    }
     int ev = hero >= 0 ? lu_k_hero_event(beta, r, sa, ss, mu, hero, rnd(rng))
                        : lu_k_spectral_event(beta, sa, ss, mu, rnd(rng));
     if (ev == LU_K_EVENT_ABSORB) {
@@ -144,6 +149,7 @@ bool lu_pt_free_flight_to_surface(const pt_state *st, lu_vec3 o, lu_vec3 d, uint
     f->event = -1;
     f->medium = -1;
     f->t = LU_K_FAR;
+    f->le = lu_v3s(0.0f);
     *has = false;
     float t_lo = 0.0f;
     for (int guard = 0; guard < 100000000; guard++) {
@@ -172,6 +178,9 @@ bool lu_pt_guide_applies(const pt_state *st, int m, uint64_t mask) {
     const pt_medium *pm = &st->media[m];
     if (!pm->constant || pm->bit < 0 || !((st->sealed_bits >> pm->bit) & 1u) || !(pm->guide_prob > 0.0f))
         return false;
+    /* the guided step samples one exponential and meets no collisions to
+     * collect emission at */
+    if (st->scene->media[m].emission != LU_EMISSION_NONE) return false;
     for (int k = 0; k < st->medium_count; k++)
         if (k != m && medium_active(&st->media[k], mask)) return false;
     return true;
@@ -191,7 +200,7 @@ pt_flight lu_pt_guided_step(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, lu_
                              int hero, lu_vec3 *beta, lu_vec3 *r, lu_k_rng *rng, lu_hit *hit, bool *has) {
     const pt_medium *pm = &st->media[m];
     const lu_medium *med = &st->scene->media[m];
-    pt_flight f = {-1, -1, LU_K_FAR};
+    pt_flight f = {-1, -1, LU_K_FAR, {0.0f, 0.0f, 0.0f}};
     float mu0 = lu_v3_dot(d, n_out), pgd = pm->guide_prob;
     float sh = lu_v3_get(pm->sigma_t, hero) * pm->cdens;
     float rate = guided ? sh * (1.0f - mu0 / pm->v0[hero]) : sh;

@@ -395,6 +395,9 @@ typedef struct integrand {
     lu_vec3 o, d;
     float phi0;
     const piece *p;
+    /* emissive medium: the integrand carries sigma_s (source) + sigma_a Le
+     * itself (the caller does not multiply by sigma_s afterwards) */
+    const lu_medium *emit;
 } integrand;
 
 static lu_vec3 integrand_eval(const integrand *f, float t) {
@@ -407,7 +410,16 @@ static lu_vec3 integrand_eval(const integrand *f, float t) {
      * ray instead of at t = 0, where it would be neither in nor out. */
     float e = f->st->eps;
     float tx = len > 4.0f * e ? fminf(fmaxf(t, p->ta + e), p->tb - e) : t;
-    lu_vec3 src = inscatter_source(f->st, f->ts, f->m, lu_v3_madd(f->o, f->d, tx), f->d, f->phi0);
+    lu_vec3 x = lu_v3_madd(f->o, f->d, tx);
+    bool scatters = !f->emit || lu_v3_maxc(f->emit->sigma_s) > 0.0f;
+    lu_vec3 src = scatters ? inscatter_source(f->st, f->ts, f->m, x, f->d, f->phi0) : lu_v3s(0.0f);
+    if (f->emit) {
+        /* Le at the node itself (t, not tx): emission has no shadow edge to keep */
+        lu_vec3 xe = lu_v3_madd(f->o, f->d, t);
+        lu_vec3 p_index = f->emit->kind == LU_DENSITY_GRID ? lu_affine_point(&f->emit->world_to_index, xe) : xe;
+        src = lu_v3_add(lu_v3_mul(f->emit->sigma_s, src),
+                        lu_v3_mul(f->emit->sigma_a, lu_medium_emission(f->emit, p_index)));
+    }
     return lu_v3_scale(lu_v3_mul(camera_transmittance(f->st, f->ts, t), src), dens);
 }
 
@@ -463,10 +475,11 @@ static lu_vec3 trace(ref_state *st, thread_scratch *ts, lu_vec3 o, lu_vec3 d, fl
     for (int m = 0; m < st->medium_count; m++) {
         const track *tr = &ts->tracks[m];
         const lu_medium *med = &s->media[m];
-        if (lu_v3_maxc(med->sigma_s) <= 0.0f) continue;
+        bool emissive = med->emission != LU_EMISSION_NONE;
+        if (lu_v3_maxc(med->sigma_s) <= 0.0f && !emissive) continue;
         lu_vec3 di_len = lu_affine_vector(&med->world_to_index, d);
         float index_per_t = med->kind == LU_DENSITY_CONSTANT ? 1.0f / st->media[m].voxel_len : lu_v3_len(di_len);
-        integrand fn = {st, ts, m, o, d, phi0, NULL};
+        integrand fn = {st, ts, m, o, d, phi0, NULL, emissive ? med : NULL};
         lu_vec3 acc = lu_v3s(0.0f);
         for (int i = 0; i < tr->count; i++) {
             const piece *p = &tr->pieces[i];
@@ -486,7 +499,7 @@ static lu_vec3 trace(ref_state *st, thread_scratch *ts, lu_vec3 o, lu_vec3 d, fl
                 fa = fb;
             }
         }
-        L = lu_v3_add(L, lu_v3_mul(acc, med->sigma_s));
+        L = lu_v3_add(L, emissive ? acc : lu_v3_mul(acc, med->sigma_s));
     }
 
     /* Boundary reflection, weighted by (1 - F_t) (Bernabei Eq. 4). */
