@@ -22,8 +22,10 @@ static double mc_uniform(mc_rng *g) {
 
 enum { MC_CHUNKS = 64 };
 /* Per chunk: R bins, T bins, R bins of multiply scattered light, then
- * r_total, t_total, r_total^2 per path, r_total of multiple scattering. */
-#define TALLY(b) (3 * (b) + 4)
+ * r_total, t_total, r_total^2 per path, r_total of multiple scattering, and
+ * r_total of multiple scattering with no face reflection between the first
+ * two events. */
+#define TALLY(b) (3 * (b) + 5)
 
 typedef struct mc_job {
     double sigma_t, albedo, eta, thickness;
@@ -48,6 +50,7 @@ static void mc_chunk(void *vctx, int64_t begin, int64_t end, int thread) {
         for (long long p = p0; p < p1; p++) {
             double x = 0, y = 0, z = 0, dx = 0, dy = 0, dz = 1, w = 1.0, r_path = 0.0;
             int events = 0;
+            bool reflected_after_first = false;
             /* A walk in a non-absorbing half-space returns with probability 1 but
              * its return time has a heavy tail: walks past 10^6 events (a
              * fraction ~1e-3 of them) are dropped, which biases low by as much. */
@@ -72,12 +75,14 @@ static void mc_chunk(void *vctx, int64_t begin, int64_t end, int thread) {
                         if (events >= 2) {
                             tal[2 * j->bins + b] += out;
                             tal[3 * j->bins + 3] += out;
+                            if (!reflected_after_first) tal[3 * j->bins + 4] += out;
                         }
                     } else {
                         tal[3 * j->bins + 1] += out;
                     }
                     w *= f;
                     dz = -dz;
+                    if (events == 1) reflected_after_first = true;
                 } else {
                     x += s * dx;
                     y += s * dy;
@@ -129,6 +134,7 @@ lu_result lu_bssrdf_mc_slab(double sigma_sp, double sigma_a, double eta, double 
         out->t_total += tal[3 * bins + 1];
         sq += tal[3 * bins + 2];
         out->r_multiple_total += tal[3 * bins + 3];
+        out->r_multiple_unreflected_total += tal[3 * bins + 4];
     }
     free(j.tally);
     for (int b = 0; b < bins; b++) {
@@ -140,6 +146,7 @@ lu_result lu_bssrdf_mc_slab(double sigma_sp, double sigma_a, double eta, double 
     out->r_total /= (double)paths;
     out->t_total /= (double)paths;
     out->r_multiple_total /= (double)paths;
+    out->r_multiple_unreflected_total /= (double)paths;
     out->r_stderr = sqrt(fmax(0.0, sq / (double)paths - out->r_total * out->r_total) / (double)paths);
     out->bins = bins;
     out->dr = dr;

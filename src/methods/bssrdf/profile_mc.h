@@ -21,6 +21,11 @@ typedef struct lu_bssrdf_mc_result {
     double *r_multiple;              /* R of paths that scattered at least twice (what diffusion models) */
     double r_total, t_total;         /* all exiting power, per unit entering power */
     double r_multiple_total;
+    /* R of paths that scattered at least twice with no face reflection
+     * between their first two events: what a path tracer reaches that joins
+     * a vertex to the light's first scattering point by one straight segment
+     * (docs/bssrdf.md, "Where the error comes from"). */
+    double r_multiple_unreflected_total;
     double r_stderr;                 /* standard error of r_total */
 } lu_bssrdf_mc_result;
 
