@@ -5,7 +5,7 @@ BUILD_ASAN  ?= build-asan
 JOBS        ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
-.PHONY: all run test test-fast asan setup build clean
+.PHONY: all run test test-fast asan tsan setup build clean
 
 all: build
 
@@ -41,5 +41,15 @@ asan: setup
 	cd $(BUILD_ASAN) && ASAN_OPTIONS=detect_leaks=1:intercept_tls_get_addr=0 UBSAN_OPTIONS=print_stacktrace=1 LUCENT_ASAN=1 \
 	  ctest --output-on-failure -j $(JOBS)
 
+# Two renderers at once, and the worker pool, under ThreadSanitizer.
+# tests/tsan.supp lists the races it reports inside Mesa's llvmpipe, which
+# lucent does not own.
+BUILD_TSAN ?= build-tsan
+tsan: setup
+	cmake -S . -B $(BUILD_TSAN) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLUCENT_TSAN=ON $(CMAKE_FLAGS) >/dev/null
+	cmake --build $(BUILD_TSAN) -j $(JOBS) --target test_concurrency test_parallel -- --no-print-directory
+	cd $(BUILD_TSAN) && TSAN_OPTIONS="halt_on_error=1 suppressions=$(CURDIR)/tests/tsan.supp" \
+	  ctest --output-on-failure -R '^test_(concurrency|parallel)$$'
+
 clean:
-	rm -rf $(BUILD) $(BUILD_ASAN) out
+	rm -rf $(BUILD) $(BUILD_ASAN) $(BUILD_TSAN) out

@@ -34,6 +34,14 @@ bool lu_cli_parse_backend(const char *s, lu_backend *b);
  * a list of backends needs): lu_backend_resolve, plus one note line on stderr
  * (once per process) when auto falls to the CPU for want of a hardware GPU. */
 lu_backend lu_cli_resolve_backend(const char *cmd, lu_backend b, const lu_method *m);
+/* Before any work: the folder of `path` exists and is writable, and path is
+ * not a folder; otherwise one line naming the path and LU_EXIT_FAIL. */
+int lu_cli_check_output(const char *cmd, const char *path);
+/* SIGINT or SIGTERM from here on removes the temporary file of an output
+ * being written to `path` (lu_atomic_file) and exits with 128 + the signal
+ * (130 for SIGINT). The output itself is only ever a complete image: renamed
+ * into place whole, or not there. */
+void lu_cli_guard_output(const char *path);
 /* Loads a scene and applies --size overrides. */
 int lu_cli_load_scene(const char *cmd, const char *path, int width, int height, lu_scene *scene);
 /* Lists every method, its backends and parameters (for --help texts). */

@@ -837,7 +837,15 @@ int lu_cmd_bench(int argc, char **argv) {
         rows = calloc(MAX_ROWS, sizeof *rows);
         if (!rows) rc = lu_cli_error("bench", &(lu_error){LU_ERR_NOMEM, "out of memory"});
     }
-    if (rc == LU_EXIT_OK && o.img_dir) mkdir(o.img_dir, 0755);
+    /* Every output is checked before the first frame: a sweep can run for hours. */
+    if (rc == LU_EXIT_OK && o.csv) rc = lu_cli_check_output("bench", o.csv);
+    if (rc == LU_EXIT_OK && o.json) rc = lu_cli_check_output("bench", o.json);
+    if (rc == LU_EXIT_OK && o.img_dir) {
+        char probe[1100];
+        snprintf(probe, sizeof probe, "%s/truth.exr", o.img_dir);
+        mkdir(o.img_dir, 0755);
+        rc = lu_cli_check_output("bench", probe);
+    }
     int nrows = 0, ys_threads = 0;
     double gsps = 0.0, load0 = 0.0;
     if (rc == LU_EXIT_OK) {

@@ -49,6 +49,7 @@ int lu_cmd_export_grid(int argc, char **argv) {
     if (!out) return lu_cli_usage("export-grid", "missing -o OUT.nvdb");
     if (strcmp(lu_path_ext(out), "nvdb") != 0)
         return lu_cli_usage("export-grid", "the output \"%s\" must end in .nvdb", out);
+    if (lu_cli_check_output("export-grid", out) != LU_EXIT_OK) return LU_EXIT_FAIL;
 
     lu_scene scene;
     int rc = lu_cli_load_scene("export-grid", scene_path, 0, 0, &scene);

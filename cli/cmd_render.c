@@ -23,8 +23,10 @@ static void usage(void) {
            "                      every N passes (samples per pixel) while rendering\n"
            "  -o, --output FILE   output image; the format follows the extension\n"
            "\n"
-           "Prints prepare and render times on stderr. The file is written under a\n"
-           "temporary name and renamed, so a failed render leaves no partial file.\n");
+           "Prints prepare and render times on stderr. The output folder is checked\n"
+           "before the work starts. The file is written under a temporary name and\n"
+           "renamed, so a failed or interrupted render (SIGINT: exit 130) leaves no\n"
+           "partial file; with --progressive-every the last complete image stays.\n");
 }
 
 /* --progressive-every: each partial image replaces the output file
@@ -95,6 +97,7 @@ int lu_cmd_render(int argc, char **argv) {
     if (rc == LU_EXIT_OK && !out_path) rc = lu_cli_usage("render", "missing -o OUT");
     if (rc == LU_EXIT_OK && lu_image_format_from_path(out_path) == LU_IMAGE_AUTO)
         rc = lu_cli_usage("render", "cannot tell the image format of \"%s\" (use .png, .exr or .pfm)", out_path);
+    if (rc == LU_EXIT_OK) rc = lu_cli_check_output("render", out_path);
     if (rc != LU_EXIT_OK) {
         lu_kv_free(&settings);
         return rc;
@@ -106,6 +109,7 @@ int lu_cmd_render(int argc, char **argv) {
         lu_kv_free(&settings);
         return rc;
     }
+    lu_cli_guard_output(out_path);
     lu_renderer *r = NULL;
     lu_image img = {0};
     progressive_sink sink = {out_path, &save};

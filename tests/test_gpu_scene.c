@@ -150,9 +150,12 @@ static void test_gpu_matches_cpu(void) {
     /* Moving the camera and a light re-uploads records; a grid change is refused. */
     if (gs) {
         lu_scene s2 = *s;
-        CHECK_OK(lu_gpu_scene_update(gs, &s2, &err), &err);
+        lu_frame_records rec = {0};
+        CHECK_OK(lu_frame_records_update(&rec, &s2, &err), &err);
+        CHECK_OK(lu_gpu_scene_update(gs, &s2, &rec, &err), &err);
         s2.medium_count = 1;
-        CHECK(lu_gpu_scene_update(gs, &s2, &err) == LU_ERR_INVALID_ARG);
+        CHECK(lu_gpu_scene_update(gs, &s2, &rec, &err) == LU_ERR_INVALID_ARG);
+        lu_frame_records_free(&rec);
     }
     lu_gpu_buffer_destroy(bin);
     lu_gpu_buffer_destroy(bout);

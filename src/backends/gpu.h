@@ -100,10 +100,21 @@ typedef struct lu_gpu_info {
     double create_seconds;    /* wall time of lu_gpu_context_create */
 } lu_gpu_info;
 
-/* Creates an OpenGL 4.5 core context (no surface) and makes it current. The
- * error names every candidate tried and why it failed. */
+/* The process's GPU device for a preference: an OpenGL 4.5 core context (no
+ * surface), made by the first create and shared by later ones (reference
+ * counted; destroy releases one reference). Calls make it current on the
+ * calling thread as they need it. The error names every candidate tried and
+ * why it failed. */
 lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err);
 void lu_gpu_context_destroy(lu_gpu_context *ctx);
+/* Serialised access to the shared devices: a GL context is current on one
+ * thread at a time, so the renderer wrapper runs every GPU renderer's
+ * prepare, render and destroy between enter and leave (recursive). Leave
+ * releases lucent's context from the thread, so that another thread can
+ * take it next; a caller's own context (a viewer's window) is theirs to make
+ * current again. */
+void lu_gpu_serial_enter(void);
+void lu_gpu_serial_leave(void);
 /* True when a hardware GPU can serve the GPU backend under LUCENT_GPU and
  * LUCENT_GPU_DEVICE: a non-software EGL device that gives an OpenGL 4.5 core
  * context. The context is made and destroyed again, and the caller's current

@@ -11,17 +11,9 @@
  *   header[1] = camera right (scaled, lu_k_camera), w = image height
  *   header[2] = camera up (scaled), w = medium count
  *   header[3] = camera forward, w = light count (environment lights excluded)
- *   media[9 m + 0..2] = world->index rows (xyz linear, w translation)
- *   media[9 m + 3] = index support lo, w = max_pieces
- *   media[9 m + 4] = index support hi, w = density scale (constant media: the density)
- *   media[9 m + 5] = sigma_a, w = phase g
- *   media[9 m + 6] = sigma_s, w = 1 for a constant medium, 0 for a grid
- *   media[9 m + 7] = world bounds lo, w = 1 when bounded by a mesh
- *   media[9 m + 8] = world bounds hi, w = eta
- *   then the majorant grids (lu_scene_layout.h)
- *   lights[3 l + 0] = position, w = type (LU_K_LIGHT_*)
- *   lights[3 l + 1] = direction, w = cos_inner
- *   lights[3 l + 2] = intensity, w = cos_outer */
+ *   media[LU_SCENE_MEDIUM_VEC4 m + i], lights[LU_SCENE_LIGHT_VEC4 l + i]: the
+ *     records of lu_scene_layout.h's tables (LU_SCENE_MEDIUM_RECORD, ...)
+ *   then, in media, the majorant grids (lu_scene_layout.h) */
 #ifndef LU_SCENE_GPU_GLSL
 #define LU_SCENE_GPU_GLSL
 
@@ -53,38 +45,25 @@ lu_k_camera lu_scene_camera() {
     return k;
 }
 
+#define LU_SCENE_GET_XYZ(i, f) k.f = lu_scene_REC[o + i].xyz;
+#define LU_SCENE_GET_WF(i, f) k.f = lu_scene_REC[o + i].w;
+#define LU_SCENE_GET_WI(i, f) k.f = int(lu_scene_REC[o + i].w);
+
 lu_k_light lu_scene_light(int l) {
-    vec4 a = lu_scene_lights[LU_SCENE_LIGHT_VEC4 * l], b = lu_scene_lights[LU_SCENE_LIGHT_VEC4 * l + 1],
-         c = lu_scene_lights[LU_SCENE_LIGHT_VEC4 * l + 2];
+    int o = LU_SCENE_LIGHT_VEC4 * l;
     lu_k_light k;
-    k.position = a.xyz;
-    k.type = int(a.w);
-    k.direction = b.xyz;
-    k.cos_inner = b.w;
-    k.intensity = c.xyz;
-    k.cos_outer = c.w;
+#define lu_scene_REC lu_scene_lights
+    LU_SCENE_LIGHT_RECORD(LU_SCENE_GET_XYZ, LU_SCENE_GET_WF, LU_SCENE_GET_WI)
+#undef lu_scene_REC
     return k;
 }
 
 lu_k_medium lu_scene_medium(int m) {
     int o = LU_SCENE_MEDIUM_VEC4 * m;
     lu_k_medium k;
-    k.w2i_x = lu_scene_media[o].xyz;
-    k.w2i_y = lu_scene_media[o + 1].xyz;
-    k.w2i_z = lu_scene_media[o + 2].xyz;
-    k.w2i_t = vec3(lu_scene_media[o].w, lu_scene_media[o + 1].w, lu_scene_media[o + 2].w);
-    k.support_lo = lu_scene_media[o + 3].xyz;
-    k.max_pieces = int(lu_scene_media[o + 3].w);
-    k.support_hi = lu_scene_media[o + 4].xyz;
-    k.density_scale = lu_scene_media[o + 4].w;
-    k.sigma_a = lu_scene_media[o + 5].xyz;
-    k.g = lu_scene_media[o + 5].w;
-    k.sigma_s = lu_scene_media[o + 6].xyz;
-    k.constant = int(lu_scene_media[o + 6].w);
-    k.bounds_lo = lu_scene_media[o + 7].xyz;
-    k.bounded = int(lu_scene_media[o + 7].w);
-    k.bounds_hi = lu_scene_media[o + 8].xyz;
-    k.eta = lu_scene_media[o + 8].w;
+#define lu_scene_REC lu_scene_media
+    LU_SCENE_MEDIUM_RECORD(LU_SCENE_GET_XYZ, LU_SCENE_GET_WF, LU_SCENE_GET_WI)
+#undef lu_scene_REC
     return k;
 }
 
@@ -99,8 +78,8 @@ lu_k_light lu_k_light_get(LU_CTX_PARAM, int l) { return lu_scene_light(l); }
  * sampler index is a literal in each branch, so no dynamically uniform
  * indexing rule applies. */
 float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index) {
-    vec4 s = lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + 4];
-    if (lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + 6].w != 0.0f) return s.w;
+    vec4 s = lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + LU_SCENE_MEDIUM_DENSITY_VEC4];
+    if (lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + LU_SCENE_MEDIUM_CONSTANT_VEC4].w != 0.0f) return s.w;
     float v = 0.0f;
     switch (medium) {
     case 0: v = lu_grid_sample_tex(lu_scene_grid[0], p_index); break;

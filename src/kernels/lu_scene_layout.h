@@ -20,6 +20,31 @@
 #define LU_SCENE_MEDIUM_VEC4 9
 #define LU_SCENE_LIGHT_VEC4 3
 
+/* The records, declared once: each table lists a kernel struct's fields
+ * (lu_k_medium, lu_k_light) with the vec4 they occupy in the record. The C
+ * packer (methods/common/gpu_scene.c) and the GLSL unpacker
+ * (lu_scene_gpu.glsl) expand the same table with their own XYZ (a vec3 in
+ * .xyz), WF (a float in .w) and WI (an int in .w, stored as an exact float)
+ * macros, so the two cannot drift apart. */
+#define LU_SCENE_MEDIUM_RECORD(XYZ, WF, WI)                                                                           \
+    XYZ(0, w2i_x) WF(0, w2i_t.x)                                                                                       \
+    XYZ(1, w2i_y) WF(1, w2i_t.y)                                                                                       \
+    XYZ(2, w2i_z) WF(2, w2i_t.z)                                                                                       \
+    XYZ(3, support_lo) WI(3, max_pieces)                                                                               \
+    XYZ(4, support_hi) WF(4, density_scale)                                                                            \
+    XYZ(5, sigma_a) WF(5, g)                                                                                           \
+    XYZ(6, sigma_s) WI(6, constant)                                                                                    \
+    XYZ(7, bounds_lo) WI(7, bounded)                                                                                   \
+    XYZ(8, bounds_hi) WF(8, eta)
+#define LU_SCENE_LIGHT_RECORD(XYZ, WF, WI)                                                                            \
+    XYZ(0, position) WI(0, type)                                                                                       \
+    XYZ(1, direction) WF(1, cos_inner)                                                                                 \
+    XYZ(2, intensity) WF(2, cos_outer)
+/* The vec4 that lu_k_density reads: density scale in .w, and the one that
+ * says a medium is constant. */
+#define LU_SCENE_MEDIUM_DENSITY_VEC4 4
+#define LU_SCENE_MEDIUM_CONSTANT_VEC4 6
+
 /* The media buffer continues, after LU_SCENE_MAX_MEDIA medium records, with
  * each grid medium's majorant grid (methods/common/majorant.h, blocks of
  * LU_SCENE_MAJORANT_BLOCK^3 voxels) for empty-space skipping: one header

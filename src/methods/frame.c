@@ -9,6 +9,8 @@
 #include "methods/frame.h"
 
 #include <stdlib.h>
+
+#include "methods/common/gpu_scene.h"
 #include <string.h>
 
 struct lu_frame_stage {
@@ -23,6 +25,7 @@ struct lu_frame_stage {
     lu_object *objects;
     int object_count, object_cap;
     lu_frame_stats stats;
+    lu_frame_records rec;
 };
 
 lu_result lu_frame_stage_create(lu_frame_stage **out, lu_error *err) {
@@ -35,7 +38,35 @@ void lu_frame_stage_destroy(lu_frame_stage *s) {
     free(s->lights);
     free(s->media);
     free(s->objects);
+    lu_frame_records_free(&s->rec);
     free(s);
+}
+
+lu_result lu_frame_records_update(lu_frame_records *rec, const lu_scene *scene, lu_error *err) {
+    const lu_camera *c = &scene->camera;
+    rec->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
+    if (scene->medium_count > rec->medium_cap) {
+        lu_k_medium *m = realloc(rec->media, (size_t)scene->medium_count * sizeof *m);
+        if (!m) return lu_fail(err, LU_ERR_NOMEM, "frame records: out of memory");
+        rec->media = m;
+        rec->medium_cap = scene->medium_count;
+    }
+    if (scene->light_count > rec->light_cap) {
+        lu_k_light *l = realloc(rec->lights, (size_t)scene->light_count * sizeof *l);
+        if (!l) return lu_fail(err, LU_ERR_NOMEM, "frame records: out of memory");
+        rec->lights = l;
+        rec->light_cap = scene->light_count;
+    }
+    for (int m = 0; m < scene->medium_count; m++) rec->media[m] = lu_medium_to_kernel(&scene->media[m]);
+    rec->medium_count = scene->medium_count;
+    rec->light_count = scene->light_count ? lu_scene_kernel_lights(scene, rec->lights) : 0;
+    return LU_OK;
+}
+
+void lu_frame_records_free(lu_frame_records *rec) {
+    free(rec->media);
+    free(rec->lights);
+    memset(rec, 0, sizeof *rec);
 }
 
 static bool same(const void *a, const void *b, size_t n) { return memcmp(a, b, n) == 0; }
@@ -73,13 +104,16 @@ static bool same_medium_geometry(const lu_medium *a, const lu_medium *b) {
            same_mesh(&a->boundary, &b->boundary);
 }
 
-void lu_frame_stage_begin(lu_frame_stage *s, const lu_scene *scene, lu_frame *f) {
+lu_result lu_frame_stage_begin(lu_frame_stage *s, const lu_scene *scene, lu_frame *f, lu_error *err) {
     f->scene = scene;
     f->stats = &s->stats;
+    f->rec = &s->rec;
+    lu_result r = lu_frame_records_update(&s->rec, scene, err);
+    if (r != LU_OK) return r;
     if (!s->have) {
         f->changed = LU_CHANGE_ALL;
         f->lights_changed = ~0ull;
-        return;
+        return LU_OK;
     }
     unsigned c = s->forced;
     uint64_t lights = 0;
@@ -117,6 +151,7 @@ void lu_frame_stage_begin(lu_frame_stage *s, const lu_scene *scene, lu_frame *f)
     }
     f->changed = c;
     f->lights_changed = lights;
+    return LU_OK;
 }
 
 static lu_result copy_array(void **dst, int *cap, const void *src, int count, size_t size, lu_error *err) {

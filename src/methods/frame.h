@@ -10,7 +10,25 @@
 
 #include <lucent/lucent.h>
 
+#include "kernels/lu_camera.h"
+#include "kernels/lu_medium.h"
+#include "kernels/lu_optics.h"
+
 #define LU_FRAME_MAX_PRODUCTS 24
+
+/* A scene's kernel records (camera, media, lights), built once per frame by
+ * the stage and read by every method and by the GPU scene upload. */
+typedef struct lu_frame_records {
+    lu_k_camera cam;
+    lu_k_medium *media;              /* scene->medium_count */
+    int medium_count, medium_cap;
+    lu_k_light *lights;              /* lu_scene_kernel_lights: scene order, environment lights left out */
+    int light_count, light_cap;
+} lu_frame_records;
+
+/* Rebuilds *rec from scene (zero-initialised the first time). */
+lu_result lu_frame_records_update(lu_frame_records *rec, const lu_scene *scene, lu_error *err);
+void lu_frame_records_free(lu_frame_records *rec);
 
 typedef struct lu_frame_stats {
     int count;
@@ -26,6 +44,7 @@ struct lu_frame {
     uint64_t lights_changed;         /* bit l (l < 63): light l differs; bit 63: one of lights 63.. does;
                                       * all bits when the light count changed */
     lu_frame_stats *stats;
+    const lu_frame_records *rec;     /* this frame's records */
 };
 
 /* True when a product built before (valid) must be rebuilt for this frame. */
@@ -48,8 +67,8 @@ typedef struct lu_frame_stage lu_frame_stage;
 
 lu_result lu_frame_stage_create(lu_frame_stage **out, lu_error *err);
 void lu_frame_stage_destroy(lu_frame_stage *s);
-/* Compares scene with the last frame that rendered and fills *f. */
-void lu_frame_stage_begin(lu_frame_stage *s, const lu_scene *scene, lu_frame *f);
+/* Compares scene with the last frame that rendered, builds its records and fills *f. */
+lu_result lu_frame_stage_begin(lu_frame_stage *s, const lu_scene *scene, lu_frame *f, lu_error *err);
 /* After the method rendered: ok keeps scene as the new "last frame"; a
  * failed frame makes the next one rebuild everything. */
 lu_result lu_frame_stage_end(lu_frame_stage *s, const lu_scene *scene, bool ok, lu_error *err);

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "backends/gpu.h"
 #include "methods/frame.h"
 #include "methods/methods.h"
 
@@ -161,6 +162,14 @@ lu_result lu_method_resolve_params(const lu_method *m, const lu_kvlist *settings
 }
 
 /* Runs the method's prepare into r->state and times it (state NULL on failure). */
+/* GPU renderers share one device, used by one thread at a time (backends/gpu.h). */
+static void gpu_enter(const lu_renderer *r) {
+    if (r->backend == LU_BACKEND_GPU) lu_gpu_serial_enter();
+}
+static void gpu_leave(const lu_renderer *r) {
+    if (r->backend == LU_BACKEND_GPU) lu_gpu_serial_leave();
+}
+
 static lu_result prepare_state(lu_renderer *r, const lu_scene *scene, lu_error *err) {
     r->state = NULL;
     double t0 = lu_time_seconds();
@@ -195,10 +204,12 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
     rd->backend = backend;
     r = lu_method_resolve_params(m, settings, rd->params, err);
     if (r == LU_OK) r = lu_frame_stage_create(&rd->stage, err);
+    gpu_enter(rd);
     if (r == LU_OK) r = prepare_state(rd, scene, err);
     /* The scene prepare saw: a first frame with other geometry prepares again. */
     if (r == LU_OK) r = lu_frame_stage_end(rd->stage, scene, true, err);
     if (r != LU_OK && rd->state) m->destroy(rd->state);
+    gpu_leave(rd);
     if (r != LU_OK) {
         lu_frame_stage_destroy(rd->stage);
         free(rd);
@@ -208,7 +219,16 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
     return LU_OK;
 }
 
+static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err);
+
 lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err) {
+    gpu_enter(r);
+    lu_result e = render_frame(r, scene, out, err);
+    gpu_leave(r);
+    return e;
+}
+
+static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err) {
     const lu_camera *c = &scene->camera;
     if (out->width == 0) {
         lu_result e = lu_image_create(out, c->width, c->height, err);
@@ -219,7 +239,8 @@ lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *ou
     }
     double t0 = lu_time_seconds();
     lu_frame frame;
-    lu_frame_stage_begin(r->stage, scene, &frame);
+    lu_result b = lu_frame_stage_begin(r->stage, scene, &frame, err);
+    if (b != LU_OK) return b;
     if ((frame.changed & (LU_CHANGE_GEOMETRY | r->method->prepare_deps)) || !r->state) {
         /* Objects are baked to world space and the methods' accelerations,
          * profiles and boundary tables are built at prepare: new geometry is
@@ -255,7 +276,9 @@ bool lu_renderer_set_progressive(lu_renderer *r, lu_progressive_fn fn, void *use
 
 void lu_renderer_destroy(lu_renderer *r) {
     if (!r) return;
+    gpu_enter(r);
     r->method->destroy(r->state);
+    gpu_leave(r);
     lu_frame_stage_destroy(r->stage);
     free(r);
 }

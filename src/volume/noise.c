@@ -3,16 +3,9 @@
 
 #include <math.h>
 
-/* A 32-bit avalanche finaliser (xorshift-multiply, "lowbias32" constants):
- * every input bit flips each output bit with probability close to 1/2. */
-static uint32_t mix32(uint32_t h) {
-    h ^= h >> 16;
-    h *= 0x7feb352dU;
-    h ^= h >> 15;
-    h *= 0x846ca68bU;
-    h ^= h >> 16;
-    return h;
-}
+#include "kernels/lu_hash.h"
+
+static uint32_t mix32(uint32_t h) { return lu_k_mix32(h); }
 
 static uint32_t lattice_hash(int64_t x, int64_t y, int64_t z, uint32_t seed) {
     uint32_t h = mix32(seed + 0x9e3779b9U);

@@ -7,6 +7,7 @@
 #include "backends/gpu/gpu_internal.h"
 
 #include <dlfcn.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -333,14 +334,45 @@ static lu_result list_candidates(const char *client, lu_gpu_device_pref pref, ca
     return LU_OK;
 }
 
+/* One device per preference serves every renderer of the process: the first
+ * create makes its context, later ones share it (GL objects of one renderer
+ * never meet another's, so sharing names is safe), the last destroy frees it.
+ * g_devices_mu guards the table; g_serial serialises every use (below). */
+static struct {
+    lu_gpu_context *ctx;
+} g_devices[3];
+static pthread_mutex_t g_devices_mu = PTHREAD_MUTEX_INITIALIZER;
+
+static lu_result context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err);
+
 lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err) {
     *out = NULL;
-    double t0 = lu_time_seconds();
     if (pref != LU_GPU_AUTO && pref != LU_GPU_HARDWARE && pref != LU_GPU_SOFTWARE)
         return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: unknown device preference %d", (int)pref);
-    const char *client = NULL;
     lu_result r = env_preference(&pref, err);
-    if (r == LU_OK) r = egl_client(&client, err);
+    if (r != LU_OK) return r;
+    pthread_mutex_lock(&g_devices_mu);
+    lu_gpu_context *ctx = g_devices[pref].ctx;
+    if (ctx) {
+        ctx->refs++;
+    } else {
+        r = context_create(&ctx, pref, err);
+        if (r == LU_OK) {
+            ctx->refs = 1;
+            ctx->slot = (int)pref;
+            g_devices[pref].ctx = ctx;
+        }
+    }
+    pthread_mutex_unlock(&g_devices_mu);
+    if (r == LU_OK) *out = ctx;
+    return r;
+}
+
+static lu_result context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err) {
+    *out = NULL;
+    double t0 = lu_time_seconds();
+    const char *client = NULL;
+    lu_result r = egl_client(&client, err);
     if (r != LU_OK) return r;
     candidate_list *cands = malloc(sizeof *cands);
     lu_gpu_context *ctx = calloc(1, sizeof *ctx);
@@ -453,6 +485,11 @@ bool lu_gpu_hardware_probe(char *why, size_t why_size) {
 
 void lu_gpu_context_destroy(lu_gpu_context *ctx) {
     if (!ctx) return;
+    pthread_mutex_lock(&g_devices_mu);
+    bool last = --ctx->refs == 0;
+    if (last) g_devices[ctx->slot].ctx = NULL;
+    pthread_mutex_unlock(&g_devices_mu);
+    if (!last) return;
     if (eglGetCurrentContext() == ctx->context)
         eglMakeCurrent(ctx->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     eglDestroyContext(ctx->display, ctx->context);
@@ -462,6 +499,41 @@ void lu_gpu_context_destroy(lu_gpu_context *ctx) {
 }
 
 void lu_gpu_info_get(const lu_gpu_context *ctx, lu_gpu_info *out) { *out = ctx->info; }
+
+/* A GL context is current on one thread at a time, and the devices are
+ * shared: every GPU renderer's prepare, render and destroy runs under this
+ * one lock (recursive: a render may create or destroy inside), and leaves no
+ * lucent context current, so the next thread can make it its own. */
+static pthread_mutex_t g_serial;
+static pthread_once_t g_serial_once = PTHREAD_ONCE_INIT;
+
+static void serial_init(void) {
+    pthread_mutexattr_t a;
+    pthread_mutexattr_init(&a);
+    pthread_mutexattr_settype(&a, PTHREAD_MUTEX_RECURSIVE);
+    pthread_mutex_init(&g_serial, &a);
+    pthread_mutexattr_destroy(&a);
+}
+
+static _Thread_local int g_serial_depth;
+
+void lu_gpu_serial_enter(void) {
+    pthread_once(&g_serial_once, serial_init);
+    pthread_mutex_lock(&g_serial);
+    g_serial_depth++;
+}
+
+void lu_gpu_serial_leave(void) {
+    if (--g_serial_depth == 0) {
+        pthread_mutex_lock(&g_devices_mu);
+        EGLContext cur = eglGetCurrentContext();
+        for (int i = 0; i < 3; i++)
+            if (g_devices[i].ctx && g_devices[i].ctx->context == cur && cur != EGL_NO_CONTEXT)
+                eglMakeCurrent(g_devices[i].ctx->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+        pthread_mutex_unlock(&g_devices_mu);
+    }
+    pthread_mutex_unlock(&g_serial);
+}
 
 bool lu_gpu_context_is_current(const lu_gpu_context *ctx) { return ctx && eglGetCurrentContext() == ctx->context; }
 

@@ -12,6 +12,8 @@ struct lu_gpu_context {
     EGLDisplay display;
     EGLContext context;
     lu_gpu_info info;
+    int refs;                /* renderers holding this device (context.c's table) */
+    int slot;                /* its preference: the table's index */
 };
 
 struct lu_gpu_program {

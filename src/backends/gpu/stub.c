@@ -13,6 +13,8 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     return LU_GPU_NO(err);
 }
 void lu_gpu_context_destroy(lu_gpu_context *ctx) {}
+void lu_gpu_serial_enter(void) {}
+void lu_gpu_serial_leave(void) {}
 bool lu_gpu_hardware_probe(char *why, size_t why_size) {
     snprintf(why, why_size, "built without GPU support (EGL/epoxy not found by pkg-config)");
     return false;

@@ -28,16 +28,11 @@
 #include "methods/frame.h"
 #include "methods/methods.h"
 #include "methods/raymarch/raymarch.h"
+#include "methods/common/kernel_ctx.h"
 
 /* ---- kernel context: the hooks of lu_afm.h and lu_view_march.h on the CPU ---- */
 struct lu_k_ctx {
-    const lu_medium *media;
-    const lu_k_medium *km;
-    int nm;
-    const lu_k_light *kl;
-    int nl;
-    const lu_view_march_frame *f;
-    const lu_k_lightview *views;
+    LU_K_CTX_VIEW_MARCH_MEMBERS
     /* afm */
     const lu_afm_map *map;
     float *records;               /* written by the build, read by lookups */
@@ -314,8 +309,6 @@ typedef struct afm_state {
     float t_cut;
     lu_media_rays mr;
     lu_afm_map map;
-    lu_k_medium *km;
-    lu_k_light *kl;
     float *surfaces;
     unsigned surfaces_version;      /* changes whenever the media (their boundary surfaces) changed */
     float eps;
@@ -333,8 +326,6 @@ static void afm_destroy(void *state) {
     lu_afm_gpu_destroy(st->gpu);
     lu_media_rays_free(&st->mr);
     lu_afm_map_free(&st->map);
-    free(st->km);
-    free(st->kl);
     free(st->surfaces);
     free(st);
 }
@@ -367,9 +358,8 @@ static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_bac
     st->eps = lu_scene_ray_epsilon(scene);
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, (int)params[P_SHADOW_RES], true, err);
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
-    st->km = calloc(nm, sizeof *st->km);
     st->surfaces = calloc(nm * LU_AFM_SURFACE_FLOATS, sizeof(float));
-    if ((!st->km || !st->surfaces) && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
+    if (!st->surfaces && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_afm_gpu_create(scene, &st->gpu, err);
     if (r == LU_OK && backend == LU_BACKEND_GPU) {
         /* The records of every view live in one storage buffer: halve the
@@ -432,10 +422,9 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     st->scene = scene;
     st->out = out;
     const lu_camera *c = &scene->camera;
-    st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
+    st->cam = frame->rec->cam;
     if (frame->changed & LU_CHANGE_MEDIA) st->surfaces_version++;
     for (int m = 0; m < scene->medium_count; m++) {
-        st->km[m] = lu_medium_to_kernel(&scene->media[m]);
         const lu_material *s = &scene->media[m].surface;
         float *sf = st->surfaces + m * LU_AFM_SURFACE_FLOATS;
         memcpy(sf, &s->albedo, 12);
@@ -443,10 +432,8 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
         memcpy(sf + 4, &s->specular, 12);
         sf[7] = 0.0f;
     }
-    lu_k_light *kl = realloc(st->kl, (scene->light_count ? (size_t)scene->light_count : 1u) * sizeof *kl);
-    if (!kl) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
-    st->kl = kl;
-    int nl = lu_scene_kernel_lights(scene, kl);
+    const lu_k_light *kl = frame->rec->lights;
+    int nl = frame->rec->light_count;
     lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, nl, err);
     if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, nl, st->eps, err);
@@ -457,20 +444,20 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     lu_view_march_frame *f = &st->frame;
     lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl, st->t_cut);
     if (st->backend == LU_BACKEND_GPU) {
-        lu_afm_gpu_frame g = {&st->mr, &st->map, st->surfaces, st->surfaces_version, scene->background, f->step,
+        lu_afm_gpu_frame g = {frame->rec, &st->mr, &st->map, st->surfaces, st->surfaces_version, scene->background, f->step,
                               f->eps, st->jitter, st->mr.shadow_res, nl, st->t_cut};
         r = lu_afm_gpu_render(st->gpu, scene, &g, out, err);
         if (r == LU_OK) lu_afm_map_built(&st->map, frame);
         return r;
     }
-    r = lu_afm_map_build_cpu(&st->map, scene, st->km, f, err);
+    r = lu_afm_map_build_cpu(&st->map, scene, frame->rec->media, f, err);
     if (r != LU_OK) return r;
     lu_afm_map_built(&st->map, frame);
     memset(&st->kctx, 0, sizeof st->kctx);
     st->kctx.media = scene->media;
-    st->kctx.km = st->km;
+    st->kctx.km = frame->rec->media;
     st->kctx.nm = scene->medium_count;
-    st->kctx.kl = st->kl;
+    st->kctx.kl = kl;
     st->kctx.nl = nl;
     st->kctx.f = f;
     st->kctx.views = st->mr.views;

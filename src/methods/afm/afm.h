@@ -10,6 +10,7 @@
 #include "kernels/lu_optics.h"
 #include "methods/common/media_ray.h"
 #include "methods/common/view_march.h"
+#include "methods/frame.h"
 
 /* Floats per medium of a boundary surface record: albedo, shininess, specular, pad. */
 #define LU_AFM_SURFACE_FLOATS 8
@@ -76,6 +77,7 @@ int lu_afm_map_stride(const lu_afm_map *map);
  * renders with methods/afm/afm_render.comp over the shared GPU scene. */
 typedef struct lu_afm_gpu lu_afm_gpu;
 typedef struct lu_afm_gpu_frame {
+    const lu_frame_records *rec;  /* the frame's camera, media and light records */
     const lu_media_rays *mr;    /* camera hits/spans/normals, shadow views and maps */
     const lu_afm_map *map;      /* views, lspans (records are built on the GPU) */
     const float *surfaces;      /* nm * LU_AFM_SURFACE_FLOATS */

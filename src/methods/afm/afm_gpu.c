@@ -119,7 +119,7 @@ lu_result lu_afm_gpu_render(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_g
     size_t pixels = (size_t)w * h;
     size_t nm = (size_t)scene->medium_count;
     size_t shadow_texels = (size_t)mr->shadow_res * mr->shadow_res;
-    lu_result r = lu_gpu_scene_update(g->scene, scene, err);
+    lu_result r = lu_gpu_scene_update(g->scene, scene, f->rec, err);
     if (r == LU_OK) r = build_maps(g, map, err);
     /* render pass */
     /* Each CPU input crosses the bus only in the frame its product was
@@ -167,7 +167,10 @@ lu_result lu_afm_gpu_render(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_g
 
 lu_result lu_afm_gpu_build_download(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_map *map, float *records,
                                     lu_error *err) {
-    lu_result r = lu_gpu_scene_update(g->scene, scene, err);
+    lu_frame_records rec = {0};
+    lu_result r = lu_frame_records_update(&rec, scene, err);
+    if (r == LU_OK) r = lu_gpu_scene_update(g->scene, scene, &rec, err);
+    lu_frame_records_free(&rec);
     if (r == LU_OK) r = build_maps(g, map, err);
     if (r == LU_OK)
         r = lu_gpu_buffer_download(g->buf[R_RECORDS], 0, records,

@@ -62,29 +62,30 @@ static void put4(float *dst, lu_vec3 v, float w) {
     dst[3] = w;
 }
 
-/* Packs the records (layout in kernels/lu_scene_gpu.glsl) and uploads them. */
-static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_error *err) {
+/* The packer side of lu_scene_layout.h's record tables (p: the record). */
+#define PUT_XYZ(i, f) p[4 * (i)] = k.f.x, p[4 * (i) + 1] = k.f.y, p[4 * (i) + 2] = k.f.z;
+#define PUT_WF(i, f) p[4 * (i) + 3] = k.f;
+#define PUT_WI(i, f) p[4 * (i) + 3] = (float)k.f;
+
+/* Packs the records (lu_scene_layout.h) and uploads them. */
+static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec, lu_error *err) {
     const lu_camera *c = &scene->camera;
-    lu_k_camera cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
-    int nl = scene->light_count > 0 ? scene->light_count : 1;
-    lu_k_light *kl = calloc((size_t)nl, sizeof *kl);
+    const lu_k_camera cam = rec->cam;
+    int light_count = rec->light_count, nl = light_count > 0 ? light_count : 1;
     float *lights = calloc((size_t)nl * LU_SCENE_LIGHT_VEC4 * 4, sizeof(float));
     size_t maj_floats = 0;
     for (int m = 0; m < gs->medium_count; m++) maj_floats += (size_t)gs->maj[m].nx * gs->maj[m].ny * gs->maj[m].nz;
     size_t media_floats = (size_t)LU_SCENE_MAJORANT_DATA * 4 + (maj_floats + 3) / 4 * 4;
     float *media = calloc(media_floats, sizeof(float));
-    if (!kl || !lights || !media) {
-        free(kl);
+    if (!lights || !media) {
         free(lights);
         free(media);
         return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
     }
-    int light_count = lu_scene_kernel_lights(scene, kl);
     for (int l = 0; l < light_count; l++) {
         float *p = lights + (size_t)l * LU_SCENE_LIGHT_VEC4 * 4;
-        put4(p, kl[l].position, (float)kl[l].type);
-        put4(p + 4, kl[l].direction, kl[l].cos_inner);
-        put4(p + 8, kl[l].intensity, kl[l].cos_outer);
+        const lu_k_light k = rec->lights[l];
+        LU_SCENE_LIGHT_RECORD(PUT_XYZ, PUT_WF, PUT_WI)
     }
     size_t at = 0;
     for (int m = 0; m < gs->medium_count; m++) {
@@ -99,17 +100,9 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
         at += n;
     }
     for (int m = 0; m < scene->medium_count; m++) {
-        lu_k_medium k = lu_medium_to_kernel(&scene->media[m]);
+        const lu_k_medium k = rec->media[m];
         float *p = media + (size_t)m * LU_SCENE_MEDIUM_VEC4 * 4;
-        put4(p, k.w2i_x, k.w2i_t.x);
-        put4(p + 4, k.w2i_y, k.w2i_t.y);
-        put4(p + 8, k.w2i_z, k.w2i_t.z);
-        put4(p + 12, k.support_lo, (float)k.max_pieces);
-        put4(p + 16, k.support_hi, k.density_scale);
-        put4(p + 20, k.sigma_a, k.g);
-        put4(p + 24, k.sigma_s, (float)k.constant);
-        put4(p + 28, k.bounds_lo, (float)k.bounded);
-        put4(p + 32, k.bounds_hi, k.eta);
+        LU_SCENE_MEDIUM_RECORD(PUT_XYZ, PUT_WF, PUT_WI)
     }
     float header[LU_SCENE_HEADER_VEC4 * 4];
     put4(header, c->position, (float)c->width);
@@ -138,7 +131,6 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, lu_erro
         if (!gs->header) r = lu_gpu_buffer_create(gs->ctx, sizeof header, header, &gs->header, err);
         else r = lu_gpu_buffer_upload(gs->header, 0, header, sizeof header, err);
     }
-    free(kl);
     free(lights);
     free(media);
     return r;
@@ -165,7 +157,11 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
         if (r == LU_OK) r = lu_majorant_build(&med->grid, LU_SCENE_MAJORANT_BLOCK, &gs->maj[m], err);
         gs->grid_generation[m] = med->grid.generation;
     }
-    if (r == LU_OK) r = upload_records(gs, scene, err);
+    /* Buffers from the start, so that binding before the first frame's update is safe. */
+    lu_frame_records rec = {0};
+    if (r == LU_OK) r = lu_frame_records_update(&rec, scene, err);
+    if (r == LU_OK) r = upload_records(gs, scene, &rec, err);
+    lu_frame_records_free(&rec);
     if (r != LU_OK) {
         lu_gpu_scene_destroy(gs);
         return r;
@@ -174,7 +170,7 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
     return LU_OK;
 }
 
-lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, lu_error *err) {
+lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec, lu_error *err) {
     if (scene->medium_count != gs->medium_count)
         return lu_fail(err, LU_ERR_INVALID_ARG, "gpu scene: the scene has %d media, %d were uploaded",
                        scene->medium_count, gs->medium_count);
@@ -200,7 +196,7 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, lu_error 
         }
         if (r == LU_OK) gs->grid_generation[m] = g->generation;
     }
-    return r == LU_OK ? upload_records(gs, scene, err) : r;
+    return r == LU_OK ? upload_records(gs, scene, rec, err) : r;
 }
 
 lu_result lu_gpu_scene_bind(lu_gpu_scene *gs, lu_error *err) {

@@ -12,6 +12,7 @@
 #ifndef LU_SAMPLING_H
 #define LU_SAMPLING_H
 
+#include "kernels/lu_hash.h"
 #include "kernels/lu_kernel.h"
 #include "kernels/lu_optics.h"
 
@@ -24,12 +25,6 @@ struct lu_k_rng {
     uint state;
 };
 LU_TYPEDEF(lu_k_rng)
-
-LU_FN uint lu_k_hash_u32(uint v) {
-    uint s = v * 747796405u + 2891336453u;
-    uint w = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
-    return (w >> 22u) ^ w;
-}
 
 LU_FN lu_k_rng lu_k_rng_make(uint seed, uint pixel, uint sample_index) {
     lu_k_rng r;

@@ -46,6 +46,7 @@
 #ifndef LU_RAYMARCH_H
 #define LU_RAYMARCH_H
 
+#include "kernels/lu_hash.h"
 #include "kernels/lu_kernel.h"
 #include "lu_lightview.h"
 #include "lu_march.h"
@@ -358,12 +359,7 @@ LU_FN vec3 lu_k_rm_radiance(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, v
 /* Per-pixel jitter in [0, 1) (integer hash), or 0.5 without jitter. */
 LU_FN float lu_k_rm_jitter(int jitter, int pixel) {
     if (jitter == 0) return 0.5f;
-    uint x = LU_K_RM_UINT(pixel) * 2654435761u + 12345u;
-    x = x ^ (x >> 16);
-    x = x * 0x7feb352du;
-    x = x ^ (x >> 15);
-    x = x * 0x846ca68bu;
-    x = x ^ (x >> 16);
+    uint x = lu_k_mix32(LU_K_RM_UINT(pixel) * 2654435761u + 12345u);
     return lu_float(x & 0xffffffu) * (1.0f / 16777216.0f);
 }
 

@@ -1,9 +1,7 @@
 /* Internal: the generic CPU hooks of kernels that read media and lights
  * (lu_k_density, lu_k_medium_count/get, lu_k_light_count/get). Include after
- * defining `struct lu_k_ctx` with at least these members:
- *   const lu_medium *media; const lu_k_medium *km; int nm;
- *   const lu_k_light *kl; int nl;
- * (raymarch, afm through raymarch_hooks.h, and ddod). The GPU twins are in
+ * defining `struct lu_k_ctx` that starts with LU_K_CTX_SCENE_MEMBERS (kernel_ctx.h)
+ * (raymarch, afm through view_march_hooks.h, and ddod). The GPU twins are in
  * kernels/lu_scene_gpu.glsl. */
 #ifndef LU_METHODS_SCENE_HOOKS_H
 #define LU_METHODS_SCENE_HOOKS_H

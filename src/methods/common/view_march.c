@@ -3,16 +3,11 @@
 #include <lucent/lucent.h>
 
 #include "methods/common/view_march.h"
+#include "methods/common/kernel_ctx.h"
 
 /* The kernel is included only for its records; no hook is called here. */
 struct lu_k_ctx {
-    const lu_medium *media;
-    const lu_k_medium *km;
-    int nm;
-    const lu_k_light *kl;
-    int nl;
-    const lu_view_march_frame *f;
-    const lu_k_lightview *views;
+    LU_K_CTX_VIEW_MARCH_MEMBERS
 };
 
 #include "methods/common/view_march_hooks.h"

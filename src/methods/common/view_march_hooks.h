@@ -1,9 +1,7 @@
 /* Internal: the CPU hooks of methods/common/lu_view_march.h over an lu_view_march_frame.
- * Include after defining `struct lu_k_ctx` with at least these members:
- *   const lu_medium *media; const lu_k_medium *km; int nm;
- *   const lu_k_light *kl; int nl; const lu_view_march_frame *f;
- *   const lu_k_lightview *views;
- * (raymarch.c and afm.c share them; afm's context adds its maps). */
+ * Include after defining `struct lu_k_ctx` that starts with
+ * LU_K_CTX_VIEW_MARCH_MEMBERS (kernel_ctx.h; raymarch.c and afm.c share
+ * them, afm's context adds its maps). */
 #ifndef LU_METHODS_RAYMARCH_HOOKS_H
 #define LU_METHODS_RAYMARCH_HOOKS_H
 

@@ -20,14 +20,11 @@
 #include "methods/methods.h"
 #include "methods/common/media_ray.h"
 #include "methods/common/tile_bins.h"
+#include "methods/common/kernel_ctx.h"
 
 /* ---- kernel context: the hooks of lu_ddod.h on the CPU ---- */
 struct lu_k_ctx {
-    const lu_medium *media;
-    const lu_k_medium *km;
-    int nm;
-    const lu_k_light *kl;
-    int nl;
+    LU_K_CTX_SCENE_MEMBERS
     const float *samples, *sh, *radiance, *pixels, *env, *traced;
     const int *tile_start, *tile_list;
 };
@@ -128,8 +125,8 @@ typedef struct ddod_state {
     lu_media_rays mr;          /* opaque objects and boundary meshes (Embree) */
     int medium_count;
     float eps;
-    lu_k_medium *km;
-    lu_k_light *kl;
+    const lu_k_medium *km;     /* the frame's records (frame.h) */
+    const lu_k_light *kl;
     int nl;
     float *pixels, *radiance;
     size_t pixels_cap, samples_cap;
@@ -166,8 +163,6 @@ static void ddod_destroy(void *state) {
     lu_ddod_set_free(&st->set);
     free(st->sh);
     lu_media_rays_free(&st->mr);
-    free(st->km);
-    free(st->kl);
     free(st->pixels);
     free(st->radiance);
     free(st->rects);
@@ -275,8 +270,6 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
     st->eps = lu_scene_ray_epsilon(scene);
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, 16, false, err);
     st->medium_count = scene->medium_count;
-    st->km = calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *st->km);
-    if (!st->km && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_ddod_gpu_create(scene, &st->gpu, err);
     if (r != LU_OK) {
         ddod_destroy(st);
@@ -589,12 +582,10 @@ static lu_result ddod_render(void *state, const lu_frame *frame, lu_image *out, 
     st->scene = scene;
     st->out = out;
     const lu_camera *c = &scene->camera;
-    st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
-    for (int m = 0; m < scene->medium_count; m++) st->km[m] = lu_medium_to_kernel(&scene->media[m]);
-    lu_k_light *kl = realloc(st->kl, (scene->light_count ? (size_t)scene->light_count : 1u) * sizeof *kl);
-    if (!kl) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
-    st->kl = kl;
-    st->nl = lu_scene_kernel_lights(scene, kl);
+    st->cam = frame->rec->cam;
+    st->km = frame->rec->media;
+    st->kl = frame->rec->lights;
+    st->nl = frame->rec->light_count;
     bool set_changed = false;
     lu_result rs = update_set(st, frame, &set_changed, err);
     if (rs != LU_OK) return rs;
@@ -672,7 +663,7 @@ static lu_result ddod_render(void *state, const lu_frame *frame, lu_image *out, 
                            st->pixels, st->bins.start, st->bins.list, (size_t)st->bins.entries, st->env,
                            st->set_version, st->traced_tab, st->nl, st->tab_version, st->pixels_version,
                            st->bins_version};
-        r = lu_ddod_gpu_render(st->gpu, scene, &f, out, err);
+        r = lu_ddod_gpu_render(st->gpu, scene, frame->rec, &f, out, err);
         if (r != LU_OK) return r;
     } else {
         lu_parallel_for(st->set.count, 0, sample_range, st, NULL);

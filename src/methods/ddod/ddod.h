@@ -32,6 +32,7 @@
 
 #include <stdint.h>
 
+#include "methods/frame.h"
 #include "methods/ddod/lu_ddod_layout.h"
 #include "kernels/lu_kernel.h"
 #include "methods/common/lu_sh.h"
@@ -134,8 +135,8 @@ typedef struct lu_ddod_frame {
 typedef struct lu_ddod_gpu lu_ddod_gpu;
 lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error *err);
 /* Runs both passes into out (the pixel records, tiles and samples come from the CPU). */
-lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_ddod_frame *f, lu_image *out,
-                             lu_error *err);
+lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_frame_records *rec,
+                             const lu_ddod_frame *f, lu_image *out, lu_error *err);
 void lu_ddod_gpu_destroy(lu_ddod_gpu *g);
 
 /* Statistics of a renderer's last frame (false if it is not a ddod renderer). */

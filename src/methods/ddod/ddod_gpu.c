@@ -64,11 +64,11 @@ static void set_uniforms(lu_gpu_program *p, const lu_ddod_frame *f) {
     lu_gpu_uniform_int(p, "u_count", f->count);
 }
 
-lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_ddod_frame *f, lu_image *out,
-                             lu_error *err) {
+lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_frame_records *rec,
+                             const lu_ddod_frame *f, lu_image *out, lu_error *err) {
     size_t pixels = (size_t)f->width * f->height;
     size_t n = (size_t)f->count;
-    lu_result r = lu_gpu_scene_update(g->scene, scene, err);
+    lu_result r = lu_gpu_scene_update(g->scene, scene, rec, err);
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
     /* llvmpipe ends an invocation's loops after 65535 iterations in total
      * (tests/test_gpu.c); pass 2 loops once per Gaussian of the tile. */

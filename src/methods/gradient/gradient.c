@@ -33,8 +33,6 @@ void lu_gr_destroy(void *state) {
     }
     free(st->dens);
     free(st->fits);
-    free(st->km);
-    free(st->kl);
     free(st->smp);
     free(st->tau);
     free(st->E);
@@ -76,8 +74,7 @@ lu_result lu_gr_prepare_mode(const lu_scene *scene, const double *params, int pa
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
     st->dens = calloc(nm, sizeof *st->dens);
     st->fits = calloc(nm, sizeof *st->fits);
-    st->km = calloc(nm, sizeof *st->km);
-    if ((!st->dens || !st->fits || !st->km) && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", who);
+    if ((!st->dens || !st->fits) && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", who);
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_gradient_gpu_create(scene, &st->gpu, err);
     if (r != LU_OK) {
         lu_gr_destroy(st);
@@ -205,12 +202,10 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
     st->scene = scene;
     st->out = out;
     const lu_camera *c = &scene->camera;
-    st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
-    for (int m = 0; m < scene->medium_count; m++) st->km[m] = lu_medium_to_kernel(&scene->media[m]);
-    lu_k_light *kl = realloc(st->kl, (scene->light_count ? (size_t)scene->light_count : 1u) * sizeof *kl);
-    if (!kl) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", st->who);
-    st->kl = kl;
-    st->nl = lu_scene_kernel_lights(scene, kl);
+    st->cam = frame->rec->cam;
+    st->km = frame->rec->media;
+    const lu_k_light *kl = st->kl = frame->rec->lights;
+    st->nl = frame->rec->light_count;
     lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, st->nl, err);
     if (r == LU_OK) r = lu_media_rays_boundary_maps(&st->mr, frame, kl, st->nl, err);
@@ -275,6 +270,7 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
     f->height = c->height;
     f->medium_count = scene->medium_count;
     f->light_count = st->nl;
+    f->rec = frame->rec;
     f->mr = &st->mr;
     f->surf = st->surf;
 

@@ -9,6 +9,7 @@
 
 #include "methods/gradient/lu_gradient_params.h"
 #include "methods/common/media_ray.h"
+#include "methods/frame.h"
 
 typedef struct lu_gradient_frame {
     lu_k_gr_params G;
@@ -17,6 +18,7 @@ typedef struct lu_gradient_frame {
     int jitter;
     float t_cut;                     /* view march early termination (lu_view_march.h) */
     int width, height, medium_count, light_count;
+    const lu_frame_records *rec;     /* the frame's camera, media and light records */
     const lu_media_rays *mr;         /* hits, spans, normals, views, shadow maps, boundary maps */
     const float *surf;               /* 8 floats per medium: boundary materials (lu_k_gr_surf) */
     /* samples being evaluated: n records of LU_K_GR_SAMPLE_FLOATS */

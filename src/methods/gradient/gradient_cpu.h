@@ -97,8 +97,8 @@ typedef struct lu_gr_state {
     bool fit_valid;            /* fits and dens match the scene's media ("gradient.fit") */
     bool evals_valid;          /* the kept sample evaluations ("gradient.samples") */
     bool light_valid;          /* splitting, final set, cell lists, radiance grid ("gradient.radiance_grid") */
-    lu_k_medium *km;
-    lu_k_light *kl;
+    const lu_k_medium *km;     /* the frame's records (frame.h) */
+    const lu_k_light *kl;
     int nl;
     float eps;
     float density_voxel;       /* world size of the finest density voxel */

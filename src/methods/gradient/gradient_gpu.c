@@ -55,7 +55,7 @@ static lu_result put(lu_gradient_gpu *g, int i, const void *data, size_t bytes, 
 
 /* Scene, march inputs and parameters: everything every pass reads. */
 static lu_result bind_common(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, lu_error *err) {
-    lu_result r = lu_gpu_scene_update(g->scene, scene, err);
+    lu_result r = lu_gpu_scene_update(g->scene, scene, f->rec, err);
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
     const lu_media_rays *mr = f->mr;
     size_t pixels = (size_t)f->width * f->height, texels = (size_t)mr->shadow_res * mr->shadow_res;

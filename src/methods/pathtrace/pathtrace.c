@@ -20,7 +20,12 @@
  *     on every crossing except the camera ray's own, the boundary's coat
  *     reflecting direct light weighted by F_r); "refract" boundaries are smooth
  *     dielectrics (Fresnel reflection or refraction, radiance scaled by
- *     (eta_i / eta_t)^2, total internal reflection);
+ *     (eta_i / eta_t)^2, total internal reflection); "diffuse" boundaries are
+ *     white Lambertian transmitters both ways (Chiang, Kutz and Burley 2016),
+ *     so a walk ends at its first boundary hit; inside a sealed (refracting
+ *     or diffuse) constant medium the ray cast is fused with the free flight,
+ *     and guide=dwivedi mixes Dwivedi-guided steps into the walk
+ *     (pathtrace_guide.c);
  *   - a delta light behind a refracting boundary cannot be reached by
  *     next-event estimation. Light subpaths carry the light through the
  *     specular chain; their segments after the first specular event are
@@ -34,31 +39,22 @@
  *     refracting boundary, Walter et al. 2009), which is missing.
  * Depth counts scattering vertices (volume events and surface bounces, not
  * dielectric interface events): depth 1 is single scattering and reproduces
- * `reference`. */
+ * `reference`.
+ *
+ * Over 800 lines: one path's strategies (next-event estimation, beams, light
+ * subpaths, the interface events) share its private state
+ * (pathtrace_state.h) and helpers; free flight and the subsurface walk's
+ * steps live in pathtrace_walk.c, the Dwivedi sampling in pathtrace_guide.c. */
 #include <lucent/lucent.h>
 
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "methods/frame.h"
 #include "methods/methods.h"
-#include "methods/pathtrace/pathtrace_internal.h"
-
-typedef struct pt_state pt_state;
-
-/* ---- kernel context: how the shared kernels read media on the CPU ---- */
-struct lu_k_ctx {
-    const pt_state *st;
-};
-static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p);
-static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz);
-
-#include "kernels/lu_camera.h"
-#include "methods/common/lu_march.h"
-#include "kernels/lu_optics.h"
-#include "methods/common/lu_sampling.h"
-#include "methods/pathtrace/lu_tracking.h"
+#include "methods/pathtrace/pathtrace_state.h"
 
 enum {
     P_SPP,
@@ -73,6 +69,8 @@ enum {
     P_SPECTRAL,
     P_EQUIANGULAR,
     P_TRANSMITTANCE,
+    P_STATS,
+    P_GUIDE,
     P_COUNT
 };
 
@@ -80,7 +78,7 @@ enum { TR_RATIO = 0, TR_EXACT };
 
 enum { SPECTRAL_HERO = 0, SPECTRAL_TRACKING };
 
-enum { BOUNDARY_AUTO = 0, BOUNDARY_STRAIGHT, BOUNDARY_REFRACT };
+enum { BOUNDARY_AUTO = 0, BOUNDARY_STRAIGHT, BOUNDARY_REFRACT, BOUNDARY_DIFFUSE };
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_SPP] = {"spp", LU_PARAM_INT, 16, 1, 1 << 20, NULL, "samples (passes) per pixel"},
@@ -90,9 +88,10 @@ static const lu_param_desc k_params[P_COUNT] = {
     [P_RR_DEPTH] = {"rr_depth", LU_PARAM_INT, 3, 0, 1 << 20, NULL,
                     "scattering vertices before Russian roulette starts"},
     [P_SEED] = {"seed", LU_PARAM_INT, 1, 0, 2147483647, NULL, "random seed (one PCG stream per pixel and sample)"},
-    [P_BOUNDARY] = {"boundary", LU_PARAM_CHOICE, 0, 0, 2, "auto|straight|refract",
+    [P_BOUNDARY] = {"boundary", LU_PARAM_CHOICE, 0, 0, 3, "auto|straight|refract|diffuse",
                     "medium boundaries: straight (the reference's model), refract (smooth dielectric), auto "
-                    "(translucent objects refract, media boundaries are straight)"},
+                    "(translucent objects refract, media boundaries are straight), diffuse (Lambertian "
+                    "transmission both ways, no Fresnel: production random walks)"},
     [P_BLOCK] = {"majorant_block", LU_PARAM_INT, 8, 1, 256, NULL, "voxels per majorant block side"},
     [P_JITTER] = {"jitter", LU_PARAM_BOOL, 1, 0, 1, NULL,
                   "random position in the pixel (box filter); off = through the pixel centre like reference spp=1"},
@@ -106,122 +105,12 @@ static const lu_param_desc k_params[P_COUNT] = {
     [P_TRANSMITTANCE] = {"transmittance", LU_PARAM_CHOICE, 0, 0, 1, "ratio|exact",
                          "shadow-ray transmittance in grids: ratio tracking (unbiased estimate) or exact cell-wise "
                          "optical depth (lu_march.h)"},
+    [P_STATS] = {"stats", LU_PARAM_BOOL, 0, 0, 1, NULL,
+                 "print walk counters on stderr after a render (vertices, boundary hits, internal reflections)"},
+    [P_GUIDE] = {"guide", LU_PARAM_CHOICE, 0, 0, 1, "off|dwivedi",
+                 "walks in sealed constant media (refract or diffuse boundaries, hero spectral): off, or a one-sample "
+                 "mixture of the classical walk and Dwivedi sampling towards the last boundary point (unbiased)"},
 };
-
-#define PT_MAX_BOUNDED 64 /* bounded media: one bit each in a path's inside mask */
-#define PT_MAX_MEDIA 128
-#define PT_MAX_CROSSINGS 256 /* surfaces a shadow ray may cross */
-#define PT_MAX_SPECULAR 256  /* dielectric events per path */
-#define PT_MAX_LIGHT_SEGMENTS 16
-
-typedef struct pt_medium {
-    lu_vec3 sigma_t;
-    float sigma_max; /* largest channel of sigma_t */
-    bool constant;
-    float cdens; /* constant density */
-    int bit;     /* bounded: its bit in the inside mask; -1 unbounded */
-    bool refract;
-    float eta;
-    float lambda;       /* a typical extinction (mean channel), for beam distance sampling */
-    lu_pt_majorant maj; /* grid media */
-    int max_pieces;     /* DDA bound for exact optical depth */
-    lu_aabb box;        /* world box of non-zero density */
-    lu_accel *inside;   /* its boundary alone, for inside tests */
-} pt_medium;
-
-enum { SURF_OPAQUE = 0, SURF_BOUNDARY };
-typedef struct pt_surf {
-    int kind;
-    int index; /* object or medium */
-} pt_surf;
-
-typedef struct pt_env {
-    int light;       /* index in the scene's lights */
-    int w, h;        /* distribution cells */
-    float *cdf_rows; /* h + 1 */
-    float *cdf_cols; /* h * (w + 1) */
-    float *prob;     /* w * h, probability of each cell */
-} pt_env;
-
-typedef struct pt_beam {
-    lu_vec3 o, u;
-    float len;
-    lu_vec3 flux;
-    uint64_t mask;
-    float lambda;
-    /* Forward beams that are the first segment after refracting into a
-     * bounded medium: the vertex strategy (connect_vertex_beams) makes the
-     * same beams, so these carry what its MIS weight needs. */
-    int entry_medium; /* -1: no other strategy makes this beam */
-    lu_vec3 s, ns;    /* entry point and outward normal there */
-    float pdf_fwd;    /* area pdf of s under light subpath sampling (refraction choice included) */
-} pt_beam;
-
-struct pt_state {
-    int spp, max_depth, rr_depth, light_paths;
-    bool rr, jitter;
-    int spectral;
-    bool equiangular;
-    int transmittance;
-    uint32_t seed;
-    int boundary_mode;
-    float block;
-    lu_accel *surf;
-    pt_surf *surf_info;
-    int surf_count;
-    pt_medium *media;
-    int medium_count;
-    pt_env *envs;
-    int env_count;
-    float eps;
-    bool have_refract;
-    uint64_t refract_bits; /* inside-mask bits of refracting media */
-    int delta_light_count;
-    lu_vec3 refract_center;
-    float refract_radius;
-    lu_vec3 scene_center;
-    float scene_radius;
-    /* Per render: */
-    const lu_scene *scene;
-    struct lu_k_ctx kctx;
-    lu_k_camera cam;
-    lu_k_light *klights;
-    uint64_t *light_mask; /* inside mask at each light's position */
-    uint64_t camera_mask;
-    bool have_delta_lights;
-    bool have_point_lights; /* point or spot */
-    double *accum;
-    pt_beam *beam_buf; /* beam_cap per thread */
-    int beam_cap;
-    lu_image *out;
-    int pass_begin, pass_end;
-    atomic_llong rows_done;
-    lu_progress progress;
-};
-
-static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
-    const pt_medium *pm = &c->st->media[m];
-    return pm->constant ? pm->cdens : lu_grid_sample(&c->st->scene->media[m].grid, p);
-}
-
-static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz) {
-    const pt_medium *pm = &c->st->media[m];
-    return pm->constant ? pm->cdens : lu_pt_majorant_at(&pm->maj, bx, by, bz);
-}
-
-/* ---- helpers --------------------------------------------------------------------- */
-
-static bool medium_active(const pt_medium *pm, uint64_t mask) { return pm->bit < 0 || ((mask >> pm->bit) & 1u); }
-
-static uint64_t mask_set(uint64_t mask, int bit, bool inside) {
-    return inside ? mask | ((uint64_t)1 << bit) : mask & ~((uint64_t)1 << bit);
-}
-
-static lu_vec3 offset_point(lu_vec3 p, lu_vec3 ng, lu_vec3 dir, float eps) {
-    return lu_v3_madd(p, ng, lu_v3_dot(ng, dir) > 0.0f ? eps : -eps);
-}
-
-static float rnd(lu_k_rng *r) { return lu_k_rng_float(r); }
 
 /* ---- environment ------------------------------------------------------------------- */
 
@@ -326,106 +215,6 @@ static bool env_sample(const pt_env *e, float u1, float u2, lu_vec3 *dir, float 
     return *pdf > 0.0f;
 }
 
-/* ---- media along a segment ------------------------------------------------------------ */
-
-typedef struct pt_walker {
-    int m;
-    float t, t1;
-    lu_vec3 oi, di;
-    lu_k_walk w;
-} pt_walker;
-
-/* Starts medium m's collision process over [a, b]; false if nothing to walk. */
-static bool walker_begin(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, float a, float b, lu_k_rng *rng,
-                         pt_walker *wk) {
-    const pt_medium *pm = &st->media[m];
-    const lu_medium *med = &st->scene->media[m];
-    wk->m = m;
-    wk->t1 = b;
-    if (pm->constant) {
-        float mu = pm->sigma_max * pm->cdens;
-        if (!(mu > 0.0f)) return false;
-        wk->t = a - logf(1.0f - rnd(rng)) / mu;
-        return true;
-    }
-    if (!(pm->sigma_max > 0.0f)) return false;
-    wk->oi = lu_affine_point(&med->world_to_index, o);
-    wk->di = lu_affine_vector(&med->world_to_index, d);
-    wk->w = lu_k_walk_begin(wk->oi, wk->di, a, b, st->block);
-    wk->t = lu_k_walk_tentative(&st->kctx, m, &wk->w, a, pm->sigma_max, rng);
-    return true;
-}
-
-static void walker_advance(const pt_state *st, pt_walker *wk, lu_k_rng *rng) {
-    const pt_medium *pm = &st->media[wk->m];
-    if (pm->constant)
-        wk->t -= logf(1.0f - rnd(rng)) / (pm->sigma_max * pm->cdens);
-    else
-        wk->t = lu_k_walk_tentative(&st->kctx, wk->m, &wk->w, wk->t, pm->sigma_max, rng);
-}
-
-/* Interval of the ray inside medium m's box, within [0, t_end]. */
-static bool medium_span(const pt_medium *pm, lu_vec3 o, lu_vec3 d, float t_end, float *a, float *b) {
-    return lu_aabb_ray(pm->box, o, d, 0.0f, t_end, a, b) && *b > *a;
-}
-
-typedef struct pt_flight {
-    int event; /* LU_K_EVENT_SCATTER, or -1: reached t_end; LU_K_EVENT_ABSORB: path ended */
-    int medium;
-    float t;
-} pt_flight;
-
-/* Free flight over (0, t_end) through every medium active under `mask`.
- * hero >= 0: hero-channel sampling (r tracks the spectral MIS ratios);
- * hero < 0: spectral tracking. */
-static pt_flight free_flight(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end, uint64_t mask, lu_vec3 *beta,
-                             lu_vec3 *r, int hero, lu_k_rng *rng) {
-    pt_walker wk[PT_MAX_MEDIA];
-    int n = 0;
-    pt_flight f = {-1, -1, t_end};
-    for (int m = 0; m < st->medium_count; m++) {
-        const pt_medium *pm = &st->media[m];
-        float a, b;
-        if (!medium_active(pm, mask) || !medium_span(pm, o, d, t_end, &a, &b)) continue;
-        if (walker_begin(st, m, o, d, a, b, rng, &wk[n])) n++;
-    }
-    for (int guard = 0; guard < 100000000; guard++) {
-        int k = -1;
-        float tk = INFINITY;
-        for (int i = 0; i < n; i++)
-            if (wk[i].t < wk[i].t1 && wk[i].t < tk) {
-                tk = wk[i].t;
-                k = i;
-            }
-        if (k < 0) return f;
-        const pt_medium *pm = &st->media[wk[k].m];
-        const lu_medium *med = &st->scene->media[wk[k].m];
-        float dens, mu;
-        if (pm->constant) {
-            dens = pm->cdens;
-            mu = pm->sigma_max * dens;
-        } else {
-            dens = lu_grid_sample(&med->grid, lu_v3_madd(wk[k].oi, wk[k].di, tk));
-            mu = pm->sigma_max * wk[k].w.dmax;
-        }
-        lu_vec3 sa = lu_v3_scale(med->sigma_a, dens), ss = lu_v3_scale(med->sigma_s, dens);
-        int ev = hero >= 0 ? lu_k_hero_event(beta, r, sa, ss, mu, hero, rnd(rng))
-                           : lu_k_spectral_event(beta, sa, ss, mu, rnd(rng));
-        if (ev == LU_K_EVENT_ABSORB) {
-            f.event = LU_K_EVENT_ABSORB;
-            return f;
-        }
-        if (ev == LU_K_EVENT_SCATTER) {
-            f.event = LU_K_EVENT_SCATTER;
-            f.medium = wk[k].m;
-            f.t = tk;
-            return f;
-        }
-        walker_advance(st, &wk[k], rng);
-    }
-    return f;
-}
-
 /* Transmittance over (0, t_end) of the media active under `mask` (no
  * surfaces): exact for constant density; for grids ratio tracking (an
  * unbiased estimate) or, with transmittance=exact, the cell-exact optical
@@ -471,7 +260,7 @@ static lu_vec3 transmit(const pt_state *st, lu_vec3 x, lu_vec3 w, float dist, ui
         const pt_surf *sf = &st->surf_info[hit.mesh_id];
         if (sf->kind == SURF_OPAQUE) return lu_v3s(0.0f);
         const pt_medium *pm = &st->media[sf->index];
-        if (pm->refract) return lu_v3s(0.0f);
+        if (pm->refract || pm->diffuse) return lu_v3s(0.0f);
         float c = lu_v3_dot(hit.ng, w);
         tr = lu_v3_scale(tr, lu_k_fresnel_transmittance(c, pm->eta));
         mask = mask_set(mask, pm->bit, c < 0.0f);
@@ -487,6 +276,7 @@ static lu_vec3 transmit(const pt_state *st, lu_vec3 x, lu_vec3 w, float dist, ui
 
 typedef struct pt_vertex {
     bool surface;
+    bool lambert_t; /* surface: a diffuse interface, Lambertian (albedo 1) about n, the side left towards */
     lu_vec3 x; /* surfaces: offset off the surface on wo's side */
     lu_vec3 d; /* medium: direction the path arrived in */
     float g;
@@ -503,6 +293,11 @@ static lu_vec3 vertex_eval(const pt_vertex *v, lu_vec3 wl, float *pdf) {
         *pdf = p;
         return lu_v3s(p);
     }
+    if (v->lambert_t) {
+        float c = fmaxf(lu_v3_dot(v->n, wl), 0.0f) * LU_K_INV_PI;
+        *pdf = c;
+        return lu_v3s(c);
+    }
     const lu_material *m = v->mat;
     *pdf = lu_k_blinn_phong_pdf(m->albedo, m->specular, m->shininess, v->n, v->wo, wl);
     return lu_k_blinn_phong(m->albedo, m->specular, m->shininess, v->n, v->wo, wl);
@@ -516,7 +311,7 @@ static lu_vec3 nee(const pt_state *st, const pt_vertex *v, bool mis, lu_k_rng *r
     int env_i = 0;
     /* A light outside a refracting medium the vertex is in cannot be
      * connected to (the shadow ray would meet the dielectric): skip the ray. */
-    uint64_t enclosing = v->mask & st->refract_bits;
+    uint64_t enclosing = v->mask & st->sealed_bits;
     for (int l = 0; l < s->light_count; l++) {
         const lu_light *light = &s->lights[l];
         if (enclosing & ~st->light_mask[l]) {
@@ -636,7 +431,7 @@ static lu_vec3 segment_nee(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end
         lambda = fmaxf(lambda, pm->lambda);
     }
     if (!(b0 > a0)) return sum;
-    uint64_t enclosing = mask & st->refract_bits;
+    uint64_t enclosing = mask & st->sealed_bits;
     for (int l = 0; l < sc->light_count; l++) {
         lu_light_type type = sc->lights[l].type;
         if (type != LU_LIGHT_POINT && type != LU_LIGHT_SPOT) continue;
@@ -667,6 +462,21 @@ static lu_vec3 segment_nee(const pt_state *st, lu_vec3 o, lu_vec3 d, float t_end
         sum = lu_v3_add(sum, lu_v3_scale(c, 1.0f / pdf));
     }
     return sum;
+}
+
+/* Whether segment_nee on a ray under `mask` at this depth has nothing to do
+ * (off, or every point and spot light lies outside a sealed medium the ray
+ * is in): it would then draw no random numbers and return zero. */
+static bool segment_nee_idle(const pt_state *st, uint64_t mask, int depth) {
+    if (!(st->equiangular && st->have_point_lights && depth + 1 <= st->max_depth)) return true;
+    uint64_t enclosing = mask & st->sealed_bits;
+    if (!enclosing) return false;
+    const lu_scene *sc = st->scene;
+    for (int l = 0; l < sc->light_count; l++) {
+        lu_light_type type = sc->lights[l].type;
+        if ((type == LU_LIGHT_POINT || type == LU_LIGHT_SPOT) && !(enclosing & ~st->light_mask[l])) return false;
+    }
+    return true;
 }
 
 /* Contribution of one beam to vertex v through a point y on it. */
@@ -895,6 +705,7 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams, 
                 const pt_surf *sf = &st->surf_info[hit.mesh_id];
                 if (sf->kind == SURF_OPAQUE) break;
                 const pt_medium *pm = &st->media[sf->index];
+                if (pm->diffuse) break; /* a diffuse interface ends the specular chain */
                 lu_vec3 p = lu_v3_madd(o, d, hit.t);
                 if (!pm->refract) {
                     float c = lu_v3_dot(hit.ng, d);
@@ -934,7 +745,8 @@ static lu_vec3 spectral_weight(lu_vec3 beta, lu_vec3 r) { return lu_v3_scale(bet
 
 /* hero: the channel whose coefficients choose free-flight events (spectral
  * MIS), or -1 for spectral tracking. */
-static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt_beam *beams, lu_k_rng *rng) {
+static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt_beam *beams, pt_stats *cs,
+                          lu_k_rng *rng) {
     const lu_scene *s = st->scene;
     lu_vec3 L = lu_v3s(0.0f), beta = lu_v3s(1.0f);
     lu_vec3 r = lu_v3s(1.0f); /* spectral MIS: p_c / p_hero of the free-flight decisions so far */
@@ -946,21 +758,42 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
     bool prev_delta = true; /* last direction chosen by the camera or a dielectric: no MIS */
     float prev_pdf = 0.0f;
 
+    /* guide=dwivedi: the outward normal at the last boundary point of a
+     * sealed medium, and the pending guided step's strategy and phase. */
+    lu_vec3 guide_n = lu_v3s(0.0f);
+    bool have_guide_n = false, guide_pending = false, guide_pick = false;
+    int guide_m = -1;
+    float guide_phase = 0.0f;
+
     int nbeams = 0;
     bool beams_on = st->have_refract && st->have_delta_lights && st->max_depth >= 2;
     if (beams_on && st->light_paths > 0) nbeams = trace_light_paths(st, rng, beams, st->beam_cap);
 
+    PT_COUNT(cs, paths);
     for (int guard = 0; guard < (1 << 24); guard++) {
+        PT_COUNT(cs, segments);
         lu_hit hit;
-        bool has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, LU_K_FAR, &hit);
-        float t_end = has ? hit.t : LU_K_FAR;
-        if (st->equiangular && st->have_point_lights && depth + 1 <= st->max_depth)
-            L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), segment_nee(st, o, d, t_end, mask, rng)));
-        pt_flight fl = free_flight(st, o, d, t_end, mask, &beta, &r, hero, rng);
+        bool has;
+        pt_flight fl;
+        /* segment_nee needs t_end first unless it has nothing to do here;
+         * then the ray cast can be fused with the free flight. */
+        if (guide_pending) { /* lu_pt_guide_applies held at the vertex: no other medium, no segment NEE */
+            guide_pending = false;
+            fl = lu_pt_guided_step(st, guide_m, o, d, guide_n, guide_pick, guide_phase, hero, &beta, &r, rng, &hit, &has);
+        } else if (!segment_nee_idle(st, mask, depth) ||
+                   !lu_pt_free_flight_to_surface(st, o, d, mask, &beta, &r, hero, rng, &fl, &hit, &has)) {
+            has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, LU_K_FAR, &hit);
+            float t_end = has ? hit.t : LU_K_FAR;
+            if (!segment_nee_idle(st, mask, depth))
+                L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), segment_nee(st, o, d, t_end, mask, rng)));
+            fl = lu_pt_free_flight(st, o, d, t_end, mask, &beta, &r, hero, rng);
+        }
         if (fl.event == LU_K_EVENT_ABSORB || lu_v3_maxc(beta) <= 0.0f) break;
 
         if (fl.event == LU_K_EVENT_SCATTER) {
             if (++depth > st->max_depth) break;
+            PT_COUNT(cs, vertices);
+            if (mask & st->sealed_bits) PT_COUNT(cs, sealed_vertices);
             pt_vertex v = {0};
             v.surface = false;
             v.x = lu_v3_madd(o, d, fl.t);
@@ -968,14 +801,35 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
             v.g = s->media[fl.medium].phase_g;
             v.mask = mask;
             L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), nee(st, &v, depth < st->max_depth, rng)));
-            if (beams_on && depth + 1 <= st->max_depth)
+            if (beams_on && depth + 1 <= st->max_depth) {
+                PT_COUNT(cs, beam_vertices);
                 L = lu_v3_add(
                     L,
                     lu_v3_mul(spectral_weight(beta, r),
                               lu_v3_add(connect_beams(st, &v, beams, nbeams, rng), connect_vertex_beams(st, &v, rng))));
+            }
             if (depth >= st->max_depth) break;
-            float u1 = rnd(rng), u2 = rnd(rng);
-            lu_vec3 wi = lu_k_sample_hg(d, v.g, u1, u2);
+            lu_vec3 wi;
+            if (st->guide && hero >= 0 && have_guide_n && lu_pt_guide_applies(st, fl.medium, mask) &&
+                segment_nee_idle(st, mask, depth)) {
+                /* One-sample mixture of the classical and the guided walk;
+                 * lu_pt_guided_step weights the direction and distance together. */
+                float us = rnd(rng), u1 = rnd(rng), u2 = rnd(rng);
+                const pt_medium *gm = &st->media[fl.medium];
+                guide_pick = us < gm->guide_prob;
+                if (guide_pick) {
+                    float mu0 = lu_pt_dwivedi_sample(gm->v0[hero], gm->vlog[hero], u1);
+                    wi = lu_k_dir_about(guide_n, mu0, 2.0f * LU_PI * u2);
+                } else {
+                    wi = lu_k_sample_hg(d, v.g, u1, u2);
+                }
+                guide_phase = lu_k_phase_hg(lu_v3_dot(d, wi), v.g);
+                guide_m = fl.medium;
+                guide_pending = true;
+            } else {
+                float u1 = rnd(rng), u2 = rnd(rng);
+                wi = lu_k_sample_hg(d, v.g, u1, u2);
+            }
             prev_pdf = lu_k_phase_hg(lu_v3_dot(d, wi), v.g);
             prev_delta = false;
             primary = false;
@@ -1002,6 +856,49 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                 const lu_medium *med = &s->media[sf->index];
                 float c = lu_v3_dot(hit.ng, d);
                 bool entering = c < 0.0f;
+                if (pm->diffuse || pm->refract) {
+                    guide_n = hit.ng;
+                    have_guide_n = true;
+                }
+                if (cs && (pm->diffuse || pm->refract)) {
+                    if (entering) cs->entries++;
+                    else cs->inside_hits++;
+                    if (specular_events >= PT_MAX_SPECULAR) cs->capped++;
+                }
+                if (pm->diffuse) {
+                    /* Chiang, Kutz and Burley 2016: the interface transmits
+                     * every ray, in a cosine-distributed direction about the
+                     * normal of the side it leaves towards (a white Lambertian
+                     * transmitter, f cos / pdf = 1, no Fresnel); a walk ends
+                     * at its first boundary hit. Not a scattering vertex for
+                     * max_depth (as dielectric events), but it is diffuse, so
+                     * it takes next-event estimation and MIS. */
+                    if (++specular_events > PT_MAX_SPECULAR) break;
+                    if (cs && !entering) cs->exits++;
+                    lu_vec3 n = entering ? lu_v3_neg(hit.ng) : hit.ng;
+                    mask = mask_set(mask, pm->bit, entering);
+                    pt_vertex v = {0};
+                    v.surface = true;
+                    v.lambert_t = true;
+                    v.x = lu_v3_madd(p, n, st->eps);
+                    v.n = n;
+                    v.wo = lu_v3_neg(d);
+                    v.mask = mask;
+                    L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), nee(st, &v, true, rng)));
+                    if (beams_on && depth + 1 <= st->max_depth)
+                        L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r),
+                                                   lu_v3_add(connect_beams(st, &v, beams, nbeams, rng),
+                                                             connect_vertex_beams(st, &v, rng))));
+                    float u1 = rnd(rng), u2 = rnd(rng);
+                    d = lu_k_sample_cosine(n, u1, u2);
+                    prev_pdf = fmaxf(lu_v3_dot(n, d), 0.0f) * LU_K_INV_PI;
+                    if (!(prev_pdf > 0.0f)) break;
+                    prev_delta = false;
+                    primary = false;
+                    scattered = true;
+                    o = v.x;
+                    continue;
+                }
                 if (!pm->refract) {
                     /* The seed model: light passes straight, weighted by F_t
                      * (not on the camera ray), and the coat reflects direct
@@ -1025,6 +922,15 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                 } else {
                     if (++specular_events > PT_MAX_SPECULAR) break;
                     lu_k_dielectric_sample ds = lu_k_sample_dielectric(d, hit.ng, pm->eta, rnd(rng));
+                    if (cs && !entering) {
+                        if (ds.refracted) {
+                            cs->exits++;
+                        } else {
+                            cs->reflected++;
+                            lu_vec3 t_unused;
+                            if (!lu_k_refract(d, lu_v3_neg(hit.ng), 1.0f / pm->eta, &t_unused)) cs->tir++;
+                        }
+                    }
                     if (ds.refracted) {
                         mask = mask_set(mask, pm->bit, entering);
                         beta = lu_v3_scale(beta, ds.weight);
@@ -1111,7 +1017,8 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
                 }
                 lu_vec3 d = lu_k_camera_dir(st->cam, (float)x + ox, (float)y + oy);
                 int hero = st->spectral == SPECTRAL_HERO ? (int)((hero0 + (uint32_t)k) % 3u) : -1;
-                lu_vec3 c = trace_path(st, cam->position, d, hero, st->beam_buf + (size_t)thread * st->beam_cap, &rng);
+                lu_vec3 c = trace_path(st, cam->position, d, hero, st->beam_buf + (size_t)thread * st->beam_cap,
+                                       st->stats_buf ? &st->stats_buf[thread] : NULL, &rng);
                 acc[0] += c.x;
                 acc[1] += c.y;
                 acc[2] += c.z;
@@ -1120,6 +1027,34 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
         long long done = atomic_fetch_add(&st->rows_done, 1) + 1;
         if (thread == 0) lu_progress_update(&st->progress, done);
     }
+}
+
+static void print_stats(const pt_stats *per_thread, int threads) {
+    pt_stats t = {0};
+    for (int i = 0; i < threads; i++) {
+        const pt_stats *c = &per_thread[i];
+        t.paths += c->paths;
+        t.segments += c->segments;
+        t.vertices += c->vertices;
+        t.sealed_vertices += c->sealed_vertices;
+        t.entries += c->entries;
+        t.inside_hits += c->inside_hits;
+        t.reflected += c->reflected;
+        t.tir += c->tir;
+        t.exits += c->exits;
+        t.capped += c->capped;
+        t.beam_vertices += c->beam_vertices;
+    }
+    double p = t.paths ? (double)t.paths : 1.0, e = t.entries ? (double)t.entries : 1.0;
+    fprintf(stderr,
+            "pathtrace stats: %llu paths; per path: %.2f segments, %.2f volume vertices (%.2f in sealed media), "
+            "%.3f entries, %.2f boundary hits from inside, %.2f internal reflections (%.2f total), %.3f exits, "
+            "%.2f beam-connected vertices; per entry: %.1f sealed vertices, %.2f internal reflections; "
+            "interface cap reached %llu times\n",
+            (unsigned long long)t.paths, (double)t.segments / p, (double)t.vertices / p, (double)t.sealed_vertices / p,
+            (double)t.entries / p, (double)t.inside_hits / p, (double)t.reflected / p, (double)t.tir / p,
+            (double)t.exits / p, (double)t.beam_vertices / p, (double)t.sealed_vertices / e, (double)t.reflected / e,
+            (unsigned long long)t.capped);
 }
 
 static void resolve(pt_state *st, int passes) {
@@ -1143,6 +1078,7 @@ static void pt_destroy(void *state) {
     free(st->klights);
     free(st->light_mask);
     free(st->beam_buf);
+    free(st->stats_buf);
     free(st);
 }
 
@@ -1163,6 +1099,8 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
     st->spectral = (int)params[P_SPECTRAL];
     st->equiangular = params[P_EQUIANGULAR] != 0.0;
     st->transmittance = (int)params[P_TRANSMITTANCE];
+    st->stats = params[P_STATS] != 0.0;
+    st->guide = params[P_GUIDE] != 0.0;
     lu_result r = LU_OK;
 
     st->eps = lu_scene_ray_epsilon(scene);
@@ -1197,6 +1135,20 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
         pm->bit = -1;
         if (pm->constant) {
             pm->lambda = lu_v3_avg(pm->sigma_t) * pm->cdens;
+            for (int c = 0; c < 3; c++) {
+                /* similarity-reduced albedo for anisotropic media */
+                double ss = lu_v3_get(med->sigma_s, c) * (1.0 - med->phase_g), sa = lu_v3_get(med->sigma_a, c);
+                pm->v0[c] = (float)lu_pt_dwivedi_v0(ss + sa > 0.0 ? ss / (ss + sa) : 0.0);
+                pm->vlog[c] = lu_pt_dwivedi_log(pm->v0[c]);
+            }
+            /* The guide ignores the phase function, so each step's weight
+             * phase / mixture strays from 1 the more anisotropic the medium,
+             * and over a long walk the product of those weights has a heavy
+             * tail: the guided share falls with |g|, 1 - max(1/2, |g|^(1/8)),
+             * the rule of Blender's Cycles random walk (0.5 at g = 0, 0.14 at
+             * 0.3, 0.03 at 0.8). */
+            pm->guide_prob = 1.0f - fmaxf(0.5f, powf(fabsf(med->phase_g), 0.125f));
+            if (pm->guide_prob < 0.01f) pm->guide_prob = 0.0f;
         } else {
             r = lu_pt_majorant_build(&med->grid, (int)st->block, &pm->maj, err);
             pm->max_pieces = med->grid.nx + med->grid.ny + med->grid.nz + 8;
@@ -1210,6 +1162,8 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
         pm->bit = bits++;
         pm->refract =
             st->boundary_mode == BOUNDARY_REFRACT || (st->boundary_mode == BOUNDARY_AUTO && med->from_object >= 0);
+        pm->diffuse = st->boundary_mode == BOUNDARY_DIFFUSE;
+        if (pm->diffuse) st->sealed_bits = mask_set(st->sealed_bits, pm->bit, true);
         uint32_t id;
         r = lu_accel_add_mesh(st->surf, &med->boundary, &id, err);
         if (r == LU_OK) {
@@ -1222,6 +1176,7 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
         if (pm->refract) {
             st->have_refract = true;
             st->refract_bits = mask_set(st->refract_bits, pm->bit, true);
+            st->sealed_bits = mask_set(st->sealed_bits, pm->bit, true);
             lu_aabb mb = lu_mesh_bounds(&med->boundary);
             lu_aabb_grow(&rbox, mb.lo);
             lu_aabb_grow(&rbox, mb.hi);
@@ -1315,6 +1270,17 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
         return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
     }
 
+    free(st->stats_buf);
+    st->stats_buf = NULL;
+    if (st->stats) {
+        st->stats_buf = calloc((size_t)lu_thread_count(), sizeof *st->stats_buf);
+        if (!st->stats_buf) {
+            free(st->accum);
+            st->accum = NULL;
+            return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
+        }
+    }
+
     int every = prog && prog->fn && prog->every > 0 ? prog->every : st->spp;
     atomic_store(&st->rows_done, 0);
     lu_progress_begin(&st->progress, "pathtrace", (int64_t)c->height * ((st->spp + every - 1) / every));
@@ -1328,6 +1294,7 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
         }
     }
     lu_progress_end(&st->progress);
+    if (st->stats_buf) print_stats(st->stats_buf, lu_thread_count());
     resolve(st, st->spp);
     free(st->accum);
     st->accum = NULL;

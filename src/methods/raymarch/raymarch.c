@@ -17,14 +17,10 @@
 #include "methods/raymarch/raymarch.h"
 
 /* ---- kernel context: the hooks of lu_view_march.h on the CPU ---- */
+#include "methods/common/kernel_ctx.h"
+
 struct lu_k_ctx {
-    const lu_medium *media;
-    const lu_k_medium *km;
-    int nm;
-    const lu_k_light *kl;
-    int nl;
-    const lu_view_march_frame *f;
-    const lu_k_lightview *views;
+    LU_K_CTX_VIEW_MARCH_MEMBERS
 };
 
 #include "methods/common/view_march_hooks.h"
@@ -57,9 +53,6 @@ typedef struct rm_state {
     int steps, jitter, res;
     float t_cut;
     lu_media_rays mr;          /* camera hits/spans, light views, shadow maps */
-    lu_k_medium *km;
-    lu_k_light *kl;
-    int nl;
     float eps;
     lu_view_march_frame frame;
     const lu_scene *scene;
@@ -76,8 +69,6 @@ static void rm_destroy(void *state) {
     if (!st) return;
     lu_raymarch_gpu_destroy(st->gpu);
     lu_media_rays_free(&st->mr);
-    free(st->km);
-    free(st->kl);
     free(st);
 }
 
@@ -95,8 +86,6 @@ static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_back
         r = lu_fail(err, LU_ERR_LIMIT, "raymarch: %d media (at most %d)", scene->medium_count, LU_K_RM_MAX_MEDIA);
     st->eps = lu_scene_ray_epsilon(scene);
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, st->res, false, err);
-    st->km = calloc(scene->medium_count ? (size_t)scene->medium_count : 1u, sizeof *st->km);
-    if (!st->km && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_raymarch_gpu_create(scene, &st->gpu, err);
     if (r != LU_OK) {
         rm_destroy(st);
@@ -132,13 +121,9 @@ static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu
     st->scene = scene;
     st->out = out;
     const lu_camera *c = &scene->camera;
-    st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
-    for (int m = 0; m < scene->medium_count; m++) st->km[m] = lu_medium_to_kernel(&scene->media[m]);
-    lu_k_light *kl = realloc(st->kl, (scene->light_count ? (size_t)scene->light_count : 1u) * sizeof *kl);
-    if (!kl) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
-    st->kl = kl;
-    int nl = lu_scene_kernel_lights(scene, kl);
-    st->nl = nl;
+    st->cam = frame->rec->cam;
+    const lu_k_light *kl = frame->rec->lights;
+    int nl = frame->rec->light_count;
     lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
     if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, nl, err);
     if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, nl, st->eps, err);
@@ -147,8 +132,8 @@ static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu
 
     lu_view_march_frame *f = &st->frame;
     lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl, st->t_cut);
-    if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, f, out, err);
-    st->kctx = (struct lu_k_ctx){scene->media, st->km, scene->medium_count, st->kl, nl, f, st->mr.views};
+    if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, frame->rec, f, out, err);
+    st->kctx = (struct lu_k_ctx){LU_K_CTX_SCENE(scene, frame->rec), f, st->mr.views};
     lu_parallel_for(c->height, 1, render_rows, st, NULL);
     return LU_OK;
 }

@@ -52,11 +52,11 @@ static lu_result put_kept(lu_raymarch_gpu *g, int i, const void *data, size_t by
                                        err);
 }
 
-lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, const lu_view_march_frame *f, lu_image *out,
-                                 lu_error *err) {
+lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, const lu_frame_records *rec,
+                                 const lu_view_march_frame *f, lu_image *out, lu_error *err) {
     size_t pixels = (size_t)f->width * f->height;
     size_t texels = (size_t)f->map_res * f->map_res;
-    lu_result r = lu_gpu_scene_update(g->scene, scene, err);
+    lu_result r = lu_gpu_scene_update(g->scene, scene, rec, err);
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
     /* Each CPU input crosses the bus only in the frame its product was
      * rebuilt (media_ray.h: camera rays, shadow views and maps, surface
@@ -95,10 +95,7 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
     long per_step = 4 + 6 * nm;
     for (int l = 0; l < f->light_count; l++) {
         per_step += 12 + 6 * nm;
-        for (int m = 0; m < scene->medium_count; m++) {
-            lu_k_medium k = lu_medium_to_kernel(&scene->media[m]);
-            per_step += lu_view_march_shadow_iterations(&k);
-        }
+        for (int m = 0; m < scene->medium_count; m++) per_step += lu_view_march_shadow_iterations(&rec->media[m]);
     }
     int seg = (int)(LU_RM_LOOP_BUDGET / per_step) - 1;
     if (seg < 1) seg = 1;

@@ -34,6 +34,7 @@ static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
     return med->kind == LU_DENSITY_CONSTANT ? med->constant : lu_grid_sample(&med->grid, p);
 }
 
+#include "kernels/lu_hash.h"
 #include "kernels/lu_camera.h"
 #include "methods/common/lu_march.h"
 #include "kernels/lu_optics.h"
@@ -220,15 +221,6 @@ static lu_vec3 fibonacci_dir(int i, int n, float phi0) {
     float r = sqrtf(fmaxf(0.0f, 1.0f - z * z));
     float phi = phi0 + (float)i * 2.39996322972865332f; /* golden angle */
     return lu_v3(r * cosf(phi), z, r * sinf(phi));
-}
-
-static uint32_t hash_u32(uint32_t x) {
-    x ^= x >> 16;
-    x *= 0x7feb352du;
-    x ^= x >> 15;
-    x *= 0x846ca68bu;
-    x ^= x >> 16;
-    return x;
 }
 
 /* ---- lights at a point ----------------------------------------------------- */
@@ -533,7 +525,7 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     const lu_camera *cam = &st->scene->camera;
     for (int64_t y = begin; y < end; y++) {
         for (int x = 0; x < cam->width; x++) {
-            uint32_t h = hash_u32((uint32_t)(y * cam->width + x) * 2654435761u + 12345u);
+            uint32_t h = lu_k_mix32((uint32_t)(y * cam->width + x) * 2654435761u + 12345u);
             float phi0 = (float)(h & 0xffffff) * (2.0f * LU_PI / 16777216.0f);
             lu_vec3 acc = lu_v3s(0.0f);
             for (int i = 0; i < st->spp; i++) {
@@ -626,7 +618,7 @@ static lu_result ref_render(void *state, const lu_frame *frame, lu_image *out, l
     st->out = out;
     st->overflow = false;
     const lu_camera *c = &scene->camera;
-    st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
+    st->cam = frame->rec->cam;
     free(st->klights);
     st->klights = calloc((size_t)(scene->light_count ? scene->light_count : 1), sizeof *st->klights);
     if (!st->klights) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
