@@ -92,10 +92,14 @@ print(json.dumps(s))" >"$f.json"
 }
 
 # "rel-L2 (mean ratio)" of A against REF after 8x8 blocks, or "pending".
+# With a third argument D, the seeds' difference: REF, their mean, carries
+# noise of about D/2 rel-L2, which adds in quadrature; "rel-L2 / less the
+# noise (mean ratio)".
 cmp8() {
   [[ -s $1 && -s $2 ]] || { echo pending; return; }
-  "$LUCENT" compare "$1" "$2" --block 8 | awk '$1 == "rel_l2" { r = $2 } $1 == "mean_ratio" { m = $2 }
-    END { printf "%.3f (%.3f)", r, m }'
+  "$LUCENT" compare "$1" "$2" --block 8 | awk -v d="${3:-}" '$1 == "rel_l2" { r = $2 } $1 == "mean_ratio" { m = $2 }
+    END { c = r * r - d * d / 4; if (c < 0) c = 0
+          if (d == "") printf "%.3f (%.3f)", r, m; else printf "%.3f / %.3f (%.3f)", r, sqrt(c), m }'
 }
 
 # The same over the blocks inside (or, with --outside, outside) the object
@@ -111,8 +115,9 @@ table() {
   echo "|---|---|---|---|---|---|---|---|"
   for s in "${SCENES[@]}"; do
     spp="$(cat "$T/$s.s1.spp" 2>/dev/null || echo "?") / $(cat "$T/$s.s2.spp" 2>/dev/null || echo "?")"
-    row="| $s | $spp | $(cmp8 "$T/$s.s1.pfm" "$T/$s.s2.pfm")"
-    for p in "${PROFILES[@]}" dipole64k; do row+=" | $(cmp8 "$B/$s.$p.pfm" "$T/$s.pfm")"; done
+    seeds=$(cmp8 "$T/$s.s1.pfm" "$T/$s.s2.pfm")
+    row="| $s | $spp | $seeds"
+    for p in "${PROFILES[@]}" dipole64k; do row+=" | $(cmp8 "$B/$s.$p.pfm" "$T/$s.pfm" "${seeds%% *}")"; done
     echo "$row |"
   done
   echo
