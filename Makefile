@@ -5,7 +5,7 @@ BUILD_ASAN  ?= build-asan
 JOBS        ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
-.PHONY: all run test test-fast asan tsan setup build clean
+.PHONY: all run test test-fast asan tsan fuzz setup build clean
 
 all: build
 
@@ -40,6 +40,12 @@ asan: setup
 	cmake --build $(BUILD_ASAN) -j $(JOBS) -- --no-print-directory
 	cd $(BUILD_ASAN) && ASAN_OPTIONS=detect_leaks=1:intercept_tls_get_addr=0 UBSAN_OPTIONS=print_stacktrace=1 LUCENT_ASAN=1 \
 	  ctest --output-on-failure -j $(JOBS)
+
+# Every libFuzzer target for FUZZ_SECONDS seconds (default 60) from the
+# committed corpus; installs clang and its fuzzer runtime first.
+FUZZ_SECONDS ?= 60
+fuzz: setup
+	FUZZ_SECONDS=$(FUZZ_SECONDS) scripts/fuzz.sh
 
 # Two renderers at once, and the worker pool, under ThreadSanitizer.
 # tests/tsan.supp lists the races it reports inside Mesa's llvmpipe, which

@@ -1,5 +1,5 @@
 /* libFuzzer target for the scene parser (JSON syntax, the strict contract,
- * procedural generators it calls). Seed it with scenes/*.json:
+ * procedural generators it calls). Seed it with the bundled scenes:
  *   build-fuzz/fuzz_scene -rss_limit_mb=4096 -timeout=20 corpus/ ../scenes/
  * File references resolve against the current directory. */
 #include <lucent/scene.h>

@@ -197,6 +197,10 @@ static lu_result parse_box(const lu_kvlist *p, gen *G, int dims[3], const char *
         double N = n[0];
         for (int i = 0; i < 3; i++) n[i] = fmax(1.0, floor(N * G->size[i] / longest + 0.5));
     }
+#ifdef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
+    /* the fuzzer is after the parser, not the generator's full resolution */
+    for (int i = 0; i < 3; i++) n[i] = fmin(n[i], 16.0);
+#endif
     G->hmin = INFINITY;
     for (int i = 0; i < 3; i++) {
         dims[i] = (int)n[i];
