@@ -25,7 +25,7 @@ static void usage(void) {
            "  --sigma-s R,G,B     reduced scattering per mm (instead of a preset)\n"
            "  --sigma-a R,G,B     absorption per mm\n"
            "  --eta E             relative index of refraction (default: the preset's, else 1.3)\n"
-           "  --model M           dipole, multipole or burley (default dipole)\n"
+           "  --model M           dipole, multipole, burley or pbd (default dipole)\n"
            "  --thickness MM      multipole: slab thickness (default: 64 mean free paths, as the table's end)\n"
            "  --table-size N      entries along r (default 512)\n"
            "  --epsilon E         r_max criterion (default 0.01)\n"
@@ -58,7 +58,7 @@ typedef struct opts {
 
 /* Model profile averaged over the annulus [r0, r1] (area-weighted). */
 static double annulus_mean(const lu_k_diffusion *k, const opts *o, int ch, double r0, double r1, int transmit,
-                           float burley_a, float burley_h) {
+                           float burley_a, float burley_h, const lu_bssrdf_profile *prof) {
     enum { N = 32 };
     double sum = 0.0, h = (r1 - r0) / N;
     for (int i = 0; i <= N; i++) {
@@ -70,6 +70,8 @@ static double annulus_mean(const lu_k_diffusion *k, const opts *o, int ch, doubl
             f = lu_k_multipole1((float)r, (float)o->thickness, o->desc.pairs, transmit, s, a, l, zb0, zbd);
         else if (o->desc.model == LU_BSSRDF_BURLEY)
             f = r > 0.0 ? lu_k_burley1((float)r, burley_a, burley_h) : 0.0;
+        else if (o->desc.model == LU_BSSRDF_PBD) /* tabulated: the table the renderer reads */
+            f = transmit ? 0.0 : lu_v3_get(lu_bssrdf_profile_eval(prof, (float)r, 0.0f, 0), ch);
         else
             f = transmit ? 0.0 : lu_k_dipole1((float)r, s, a, l, zb0);
         sum += w * 2.0 * M_PI * r * f;
@@ -82,6 +84,7 @@ typedef struct mc_summary {
     double total[3], stderr_[3], t_total[3], multiple[3], unreflected[3];
     double rel_l2_ms[3];       /* model vs multiply scattered light only */
     double rel_l2[3];          /* model vs walk over [0, r_max], area-weighted */
+    double mean_rel[3];        /* energy-weighted mean |model - walk| / walk over the bins: sum |M - W| / sum W of bin powers */
     /* Reflected power model / walk (multiply scattered) within bands of the
      * channel's mean free path l: r < l, l <= r < 10 l, r >= 10 l (to r_max). */
     double band[3][3];
@@ -104,7 +107,9 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
         printf("  reduced albedo              %10.5g %10.5g %10.5g\n", k.alpha_p.x, k.alpha_p.y, k.alpha_p.z);
         printf("  A (F_dr %.4f)               %10.5g\n", lu_k_fdr(eta), lu_k_diffusion_a(eta));
         printf("  model %s, %d entries, r_max %.5g mm (eps %g)\n",
-               o->desc.model == LU_BSSRDF_MULTIPOLE ? "multipole" : o->desc.model == LU_BSSRDF_BURLEY ? "burley" : "dipole",
+               o->desc.model == LU_BSSRDF_MULTIPOLE ? "multipole" : o->desc.model == LU_BSSRDF_BURLEY ? "burley"
+               : o->desc.model == LU_BSSRDF_PBD       ? "pbd"
+                                                      : "dipole",
                prof.nr, prof.r_max, o->desc.epsilon);
         if (o->desc.model == LU_BSSRDF_MULTIPOLE) {
             printf("  thickness d %.5g mm (table rows %.4g..%.4g mm)\n", o->thickness, prof.d_lo, prof.d_hi);
@@ -131,8 +136,7 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
     for (int c = 0; c < 3; c++) {
         float s = lu_v3_get(k.sigma_tr, c), l = lu_v3_get(k.l, c);
         burley_a[c] = lu_k_dipole_total1(s, lu_v3_get(k.alpha_p, c), l, lu_v3_get(k.zb_top, c));
-        float ell = s > 1e-3f / l ? 1.0f / s : 1e3f * l;
-        burley_h[c] = ell / lu_k_burley_shape(burley_a[c]);
+        burley_h[c] = lu_k_burley_h(burley_a[c], l);
     }
     double dr = prof.r_max / o->bins;
     if (o->mc > 0) {
@@ -152,13 +156,15 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
             mc_r[c] = res.r_profile;
             mc_t[c] = res.t_profile;
             mc_m[c] = res.r_multiple;
-            double num = 0.0, den = 0.0, num_m = 0.0, den_m = 0.0, bm[3] = {0}, bw[3] = {0};
+            double num = 0.0, den = 0.0, num_m = 0.0, den_m = 0.0, bm[3] = {0}, bw[3] = {0}, num_e = 0.0, den_e = 0.0;
             double lch = lu_v3_get(k.l, c);
             for (int b = 0; b < o->bins; b++) {
-                double model = annulus_mean(&k, o, c, b * dr, (b + 1) * dr, 0, burley_a[c], burley_h[c]);
+                double model = annulus_mean(&k, o, c, b * dr, (b + 1) * dr, 0, burley_a[c], burley_h[c], &prof);
                 double area = M_PI * dr * dr * ((b + 1.0) * (b + 1.0) - (double)b * b);
                 num += area * (model - mc_r[c][b]) * (model - mc_r[c][b]);
                 den += area * mc_r[c][b] * mc_r[c][b];
+                num_e += area * fabs(model - mc_r[c][b]);
+                den_e += area * mc_r[c][b];
                 num_m += area * (model - mc_m[c][b]) * (model - mc_m[c][b]);
                 den_m += area * mc_m[c][b] * mc_m[c][b];
                 double rcen = (b + 0.5) * dr;
@@ -167,6 +173,7 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
                 bw[band] += area * mc_m[c][b];
             }
             ms->rel_l2[c] = den > 0.0 ? sqrt(num / den) : 0.0;
+            ms->mean_rel[c] = den_e > 0.0 ? num_e / den_e : 0.0;
             ms->rel_l2_ms[c] = den_m > 0.0 ? sqrt(num_m / den_m) : 0.0;
             for (int q = 0; q < 3; q++) ms->band[q][c] = bw[q] > 0.0 ? bm[q] / bw[q] : NAN;
         }
@@ -186,6 +193,8 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
                    ms->unreflected[2]);
             printf("    model rel-L2 on [0, r_max] %9.4f %10.4f %10.4f  (all light)\n", ms->rel_l2[0], ms->rel_l2[1],
                    ms->rel_l2[2]);
+            printf("    model mean rel. error      %9.4f %10.4f %10.4f  (energy-weighted over the bins, all light)\n",
+                   ms->mean_rel[0], ms->mean_rel[1], ms->mean_rel[2]);
             printf("    model rel-L2 on [0, r_max] %9.4f %10.4f %10.4f  (multiple scattering only)\n", ms->rel_l2_ms[0],
                    ms->rel_l2_ms[1], ms->rel_l2_ms[2]);
             static const char *const names[3] = {"r < 1 mfp", "1-10 mfp", "10 mfp-r_max"};
@@ -206,11 +215,11 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
                 double rm = (b + 0.5) * dr;
                 fprintf(f, "%.6g", rm);
                 for (int c = 0; c < 3; c++)
-                    fprintf(f, ",%.6g", annulus_mean(&k, o, c, b * dr, (b + 1) * dr, 0, burley_a[c], burley_h[c]));
+                    fprintf(f, ",%.6g", annulus_mean(&k, o, c, b * dr, (b + 1) * dr, 0, burley_a[c], burley_h[c], &prof));
                 for (int c = 0; c < 3; c++) fprintf(f, ",%.6g", mc_r[c] ? mc_r[c][b] : 0.0);
                 for (int c = 0; c < 3; c++) fprintf(f, ",%.6g", mc_m[c] ? mc_m[c][b] : 0.0);
                 for (int c = 0; c < 3; c++)
-                    fprintf(f, ",%.6g", annulus_mean(&k, o, c, b * dr, (b + 1) * dr, 1, burley_a[c], burley_h[c]));
+                    fprintf(f, ",%.6g", annulus_mean(&k, o, c, b * dr, (b + 1) * dr, 1, burley_a[c], burley_h[c], &prof));
                 for (int c = 0; c < 3; c++) fprintf(f, ",%.6g", mc_t[c] ? mc_t[c][b] : 0.0);
                 fprintf(f, "\n");
             }
@@ -269,7 +278,8 @@ int lu_cmd_profile(int argc, char **argv) {
             if (strcmp(m, "dipole") == 0) o.desc.model = LU_BSSRDF_DIPOLE;
             else if (strcmp(m, "multipole") == 0) o.desc.model = LU_BSSRDF_MULTIPOLE;
             else if (strcmp(m, "burley") == 0) o.desc.model = LU_BSSRDF_BURLEY;
-            else return lu_cli_usage("profile", "--model takes dipole, multipole or burley");
+            else if (strcmp(m, "pbd") == 0) o.desc.model = LU_BSSRDF_PBD;
+            else return lu_cli_usage("profile", "--model takes dipole, multipole, burley or pbd");
         } else if (strcmp(a, "--thickness") == 0 && nx) {
             o.thickness = atof(argv[++i]);
             if (!(o.thickness > 0.0)) return lu_cli_usage("profile", "--thickness must be > 0");

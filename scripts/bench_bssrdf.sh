@@ -29,6 +29,10 @@ if run totals; then
     --csv "$OUT/profile_marble_slab4mm.csv" >"$OUT/profile_marble_slab4mm.txt"
   "$L" profile --preset skin1 --model burley --mc 400000 --bins 80 --csv "$OUT/profile_skin1_burley.csv" \
     >"$OUT/profile_skin1_burley.txt"
+  # Normalised diffusion in the set-up its fit was made for: index-matched (eta 1), pencil beam.
+  for p in marble skin1 ketchup apple wholemilk; do
+    "$L" profile --preset "$p" --eta 1 --model burley --mc 200000 --bins 48 >"$OUT/burley_eta1_$p.txt"
+  done
 fi
 
 # ---- (2) frame time vs splat count, 512^2, dipole and multipole, CPU and GPU --------

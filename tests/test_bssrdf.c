@@ -11,6 +11,11 @@
  *   - SH9 irradiance of a constant and of a linear environment (exact in
  *     bands 0 and 1), and the Lambert/Fresnel convolution constants;
  *   - relaxation makes nearest-neighbour distances more uniform;
+ *   - normalised diffusion against the random walk in the set-up its fit was
+ *     made for (index-matched, pencil beam), per channel, for five presets;
+ *   - white furnace: the exit term lets out what the profile carries, and a
+ *     non-absorbing half-space returns everything that enters (the walk);
+ *   - albedo + mean free path authoring: the rendered half-space albedo;
  *   - rendering: a flat slab under a point light equals the direct integral
  *     of profile x irradiance; slabs under directional light equal the
  *     multipole totals (R from above, T from below); CPU and GPU agree;
@@ -26,6 +31,7 @@
 #include "methods/bssrdf/bssrdf_profile.h"
 #include "methods/bssrdf/bssrdf_sampling.h"
 #include "methods/bssrdf/lu_diffusion.h"
+#include "methods/bssrdf/profile_mc.h"
 
 /* ---- independent formulas (double precision) ------------------------------------ */
 
@@ -64,6 +70,18 @@ static double fresnel_r(double cos_i, double eta) {
     double ct = sqrt(1.0 - s2);
     double rs = (c - eta * ct) / (c + eta * ct), rp = (eta * c - ct) / (eta * c + ct);
     return 0.5 * (rs * rs + rp * rp);
+}
+
+/* What the exit term F_t(eta, w_o) / pi lets out over the hemisphere:
+ * 2 int_0^1 F_t(mu) mu dmu = 1 - F_dr,ext (32-node Gauss-Legendre). */
+static double exit_fraction(double eta) {
+    double gx[32], gw[32], sum = 0.0;
+    lu_test_gauss_legendre(32, gx, gw);
+    for (int i = 0; i < 32; i++) {
+        double mu = 0.5 * (1.0 + gx[i]);
+        sum += 0.5 * gw[i] * 2.0 * (1.0 - fresnel_r(mu, eta)) * mu;
+    }
+    return sum;
 }
 
 /* int_a^b f(r) dr by composite 32-node Gauss-Legendre on `panels` pieces,
@@ -139,6 +157,155 @@ static void test_dipole_profile_and_total(void) {
         }
         lu_bssrdf_profile_destroy(&prof);
     }
+}
+
+static bool ok_(lu_result r, const lu_error *e) {
+    CHECK_OK(r, e);
+    return r == LU_OK;
+}
+
+/* Power of a 1D profile table in the annulus [r0, r1]: 2 pi r P(r) by
+ * Gauss-Legendre in x = sqrt(r / r_max), the variable the table is linear in. */
+static double table_annulus(const lu_bssrdf_profile *p, int ch, double r0, double r1) {
+    static double gx[32], gw[32];
+    static int ready = 0;
+    if (!ready) {
+        lu_test_gauss_legendre(32, gx, gw);
+        ready = 1;
+    }
+    double x0 = sqrt(r0 / p->r_max), x1 = sqrt(fmin(r1, p->r_max) / p->r_max), sum = 0.0;
+    for (int i = 0; i < 32 && x1 > x0; i++) {
+        double x = 0.5 * (x0 + x1) + 0.5 * (x1 - x0) * gx[i], r = p->r_max * x * x;
+        sum += 0.5 * (x1 - x0) * gw[i] * 2.0 * M_PI * r * lu_v3_get(lu_bssrdf_profile_eval(p, (float)r, 0.0f, 0), ch) *
+               2.0 * p->r_max * x;
+    }
+    return sum;
+}
+
+/* Christensen-Burley's fit s = 1.85 - A + 7 |A - 0.8|^3 with the volume mean
+ * free path (their perpendicular-illumination case, published mean relative
+ * error 5.5 % against Monte Carlo) in the set-up it was fitted in: a pencil
+ * beam entering an index-matched half-space with isotropic scattering,
+ * everything that leaves counted (single scattering included). The measure is
+ * the energy-weighted mean over radial bins of |model - walk| / walk, i.e.
+ * E = sum |M_b - W_b| / sum W_b on bin powers over [0, r_max); its noise
+ * sigma_E comes from the walk's per-bin standard errors, with
+ * dE/dW_b = -(sgn(M_b - W_b) + E) / sum W.
+ * On this measure even the best shape length h of the two-exponential form
+ * (found here by search against the walk, same albedo) is 8-11 % off for
+ * albedos near 0.9, so the fit is held to that best plus the published mean
+ * error; the wrong pairing (h from 1/sigma_tr) is 7-16 times too wide and
+ * far outside it. */
+static double burley_bins_error(const double *W, double tot, int n, double dr, double a, double h) {
+    double num = 0.0;
+    for (int b = 0; b < n; b++) {
+        double c0 = 1.0 - 0.25 * exp(-b * dr / h) - 0.75 * exp(-b * dr / (3.0 * h));
+        double c1 = 1.0 - 0.25 * exp(-(b + 1) * dr / h) - 0.75 * exp(-(b + 1) * dr / (3.0 * h));
+        num += fabs(a * (c1 - c0) - W[b]);
+    }
+    return num / tot;
+}
+
+static void test_burley_vs_walk(void) {
+    static const char *const names[] = {"marble", "skin1", "ketchup", "apple", "wholemilk"};
+    enum { BINS = 48 };
+    lu_bssrdf_profile_desc desc;
+    lu_bssrdf_profile_desc_default(&desc);
+    desc.model = LU_BSSRDF_BURLEY;
+    double worst = 0.0, sum_e = 0.0;
+    int n_e = 0;
+    for (int k = 0; k < 5; k++) {
+        const lu_material_preset *p = lu_material_preset_find(names[k]);
+        CHECK(p != NULL);
+        if (!p) continue;
+        lu_bssrdf_layer layer = {lu_v3(p->sigma_s_prime[0], p->sigma_s_prime[1], p->sigma_s_prime[2]),
+                                 lu_v3(p->sigma_a[0], p->sigma_a[1], p->sigma_a[2]), 1.0f, 0.0f};
+        lu_bssrdf_profile prof;
+        lu_error err;
+        if (!ok_(lu_bssrdf_profile_build(&layer, 1, &desc, &prof, &err), &err)) continue;
+        for (int c = 0; c < 3; c++) {
+            /* Bins over this channel's own 99 % radius of the walk would need
+             * the walk first; the profile's shared r_max is a superset. */
+            double dr = prof.r_max / BINS;
+            lu_bssrdf_mc_result mc;
+            if (!ok_(lu_bssrdf_mc_slab(p->sigma_s_prime[c], p->sigma_a[c], 1.0, INFINITY, 60000, 7 + c, BINS + 1,
+                                              dr, &mc, &err),
+                            &err))
+                continue;
+            double M[BINS], W[BINS], S[BINS], tot = 0.0, num = 0.0;
+            for (int b = 0; b < BINS; b++) {
+                double area = M_PI * dr * dr * ((b + 1.0) * (b + 1.0) - (double)b * b);
+                M[b] = table_annulus(&prof, c, b * dr, (b + 1) * dr);
+                W[b] = mc.r_profile[b] * area;
+                S[b] = mc.r_profile_stderr[b] * area;
+                tot += W[b];
+                num += fabs(M[b] - W[b]);
+            }
+            double e = num / tot, var = 0.0;
+            for (int b = 0; b < BINS; b++) {
+                double g = ((M[b] >= W[b] ? 1.0 : -1.0) + e) / tot;
+                var += g * g * S[b] * S[b];
+            }
+            double l = 1.0 / (p->sigma_s_prime[c] + p->sigma_a[c]), best = INFINITY, h_best = l;
+            for (int q = -300; q <= 300; q++) {
+                double h = l * exp(0.01 * q), eq = burley_bins_error(W, tot, BINS, dr, prof.total_closed[c], h);
+                if (eq < best) best = eq, h_best = h;
+            }
+            double bound = best + 0.055 + 3.0 * sqrt(var);
+            /* For comparison, the other pairing: 1/sigma_tr with s = 3.5 + 100 (A - 0.33)^4. */
+            double a = prof.total_closed[c], t4 = (a - 0.33) * (a - 0.33);
+            double h_d = 1.0 / sqrt(3.0 * p->sigma_a[c] / l) / (3.5 + 100.0 * t4 * t4);
+            fprintf(stderr,
+                    "  burley %-9s ch %d: A %.3f, mean rel. error %.2f %% (sigma %.2f %%), best h %.2f %% at h/l %.2f "
+                    "(fit %.2f); diffuse-mfp pairing %.2f %%\n",
+                    names[k], c, a, 100 * e, 100 * sqrt(var), 100 * best, h_best / l, lu_k_burley_h((float)a, (float)l) / l,
+                    100 * burley_bins_error(W, tot, BINS, dr, a, h_d));
+            CHECK_MSG(e <= bound, "%s ch %d: %.4f > %.4f", names[k], c, e, bound);
+            sum_e += e;
+            n_e++;
+            worst = fmax(worst, e);
+            lu_bssrdf_mc_destroy(&mc);
+        }
+        lu_bssrdf_profile_destroy(&prof);
+    }
+    fprintf(stderr, "  burley: worst channel %.2f %%, mean over channels %.2f %%\n", 100 * worst, 100 * sum_e / n_e);
+}
+
+/* White furnace: a non-absorbing half-space behind a smooth dielectric lets
+ * out everything that enters. The random walk with the same boundary
+ * (Fresnel split at every internal hit) measures that fraction, 1 less the
+ * weight of the walks it drops past 10^6 events (which it reports); the model
+ * must return the same:
+ * the dipole's total is alpha' = 1, and the exit term with the renderer's
+ * normalisation (the material record's pi / k_0, k_0 = 2 pi int F_t mu dmu)
+ * must integrate to 1 over the hemisphere (here by the test's own quadrature;
+ * without it, 1 - F_dr,ext = 0.94 at eta 1.3). */
+static void test_white_furnace(void) {
+    static const double etas[3] = {1.0, 1.3, 1.5};
+    for (int i = 0; i < 3; i++) {
+        double k[3];
+        lu_bssrdf_sh_kernel((float)etas[i], k);
+        double norm = (float)(M_PI / k[0]);   /* as bssrdf.c stores it */
+        double out = exit_fraction(etas[i]) * norm;
+        fprintf(stderr, "  eta %.1f: exit term lets out %.6f unnormalised, %.6f normalised\n", etas[i],
+                exit_fraction(etas[i]), out);
+        CHECK_NEAR(out, 1.0, 1e-5);
+    }
+    lu_bssrdf_mc_result mc;
+    lu_error err;
+    if (!ok_(lu_bssrdf_mc_slab(1.0, 0.0, 1.3, INFINITY, 20000, 3, 4, 1.0, &mc, &err), &err)) return;
+    fprintf(stderr, "  walk, non-absorbing, eta 1.3: %.5f +- %.1e leaves, %.1e dropped at the event cap\n", mc.r_total,
+            mc.r_stderr, mc.dropped);
+    CHECK(mc.r_total <= 1.0 + 3.0 * mc.r_stderr);
+    CHECK(mc.r_total + mc.dropped >= 1.0 - 3.0 * mc.r_stderr);
+    lu_bssrdf_mc_destroy(&mc);
+    lu_bssrdf_layer layer = {lu_v3s(1.0f), lu_v3s(0.0f), 1.3f, 0.0f};
+    lu_bssrdf_profile_desc desc;
+    lu_bssrdf_profile_desc_default(&desc);
+    lu_bssrdf_profile prof;
+    if (!ok_(lu_bssrdf_profile_build(&layer, 1, &desc, &prof, &err), &err)) return;
+    CHECK_NEAR(prof.total_closed[0], 1.0, 1e-6);
+    lu_bssrdf_profile_destroy(&prof);
 }
 
 /* Prefiltered levels: each is the profile averaged over a disc, so it keeps
@@ -491,7 +658,7 @@ static void test_slab_point_light(void) {
                 lu_camera_ray(&s.camera, (float)px + 0.5f, (float)py + 0.5f, &o, &d);
                 double t = -o.y / d.y;
                 conv_ctx c = {o.x + t * d.x, o.z + t * d.z, 8.0, 0, 0};
-                double ft_o = 1.0 - fresnel_r(-d.y, K_ETA);
+                double ft_o = (1.0 - fresnel_r(-d.y, K_ETA)) / exit_fraction(K_ETA);
                 for (c.ch = 0; c.ch < 3; c.ch++) {
                     double l = 1.0 / (k_sp[c.ch] + k_sa[c.ch]);
                     double want = ft_o / M_PI * integrate_r(ring, &c, 1e-2 * l, 60.0 * l, 24);
@@ -527,7 +694,7 @@ static void test_slab_directional_multipole(void) {
                 for (int px = 2; px < s.camera.width; px += 5) {
                     lu_vec3 o, d;
                     lu_camera_ray(&s.camera, (float)px + 0.5f, (float)py + 0.5f, &o, &d);
-                    double ft_o = 1.0 - fresnel_r(-d.y, K_ETA);
+                    double ft_o = (1.0 - fresnel_r(-d.y, K_ETA)) / exit_fraction(K_ETA);
                     for (int c = 0; c < 3; c++) {
                         double R, T;
                         slab_totals(k_sp[c], k_sa[c], K_ETA, 10.0, &R, &T);
@@ -545,13 +712,64 @@ static void test_slab_directional_multipole(void) {
     }
 }
 
+/* Authored albedo + mean free path: a 120 x 60 x 120 mm box (a half-space
+ * for these lengths) under a directional light at normal incidence. Its
+ * albedo as rendered, the exitance over what entered,
+ *   L pi (1 - F_dr,ext) / (F_t(w_o) E F_t(0)),
+ * must be the authored one within 0.01, for the 1D profiles. */
+static void test_authored_albedo(void) {
+    static const double alb[3] = {0.8, 0.5, 0.2};
+    char json[2048];
+    snprintf(json, sizeof json,
+             "{\"camera\": {\"position\": [0, 60, 0], \"look_at\": [0, 0, 0], \"up\": [0, 0, -1], \"fov_y_deg\": 8,"
+             " \"width\": 16, \"height\": 16},"
+             " \"lights\": [{\"type\": \"directional\", \"direction\": [0, 1, 0], \"irradiance\": [2, 2, 2]}],"
+             " \"objects\": [{\"mesh\": {\"procedural\": \"box\", \"size\": [120, 60, 120]},"
+             " \"transform\": {\"translate\": [0, -30, 0]},"
+             " \"material\": {\"type\": \"translucent\", \"subsurface_albedo\": [%g, %g, %g],"
+             " \"mean_free_path_mm\": [1.0, 0.5, 0.25], \"eta\": %g, \"specular\": 0}}]}",
+             alb[0], alb[1], alb[2], K_ETA);
+    lu_scene s;
+    if (!load(json, &s)) return;
+    /* The inversion itself: the dipole total of the stored coefficients. */
+    const lu_material *m = &s.objects[0].material;
+    for (int c = 0; c < 3; c++) {
+        CHECK_REL(dipole_total(lu_v3_get(m->sigma_s, c), lu_v3_get(m->sigma_a, c), K_ETA), alb[c], 1e-5);
+        CHECK_REL(1.0 / (lu_v3_get(m->sigma_s, c) + lu_v3_get(m->sigma_a, c)), c == 0 ? 1.0 : (c == 1 ? 0.5 : 0.25),
+                  1e-5);
+    }
+    static const char *const profiles[2] = {"dipole", "burley"};
+    double ft_in = 1.0 - fresnel_r(1.0, K_ETA);
+    for (int p = 0; p < 2; p++) {
+        lu_image img;
+        if (!render(&s, profiles[p], LU_BACKEND_CPU, 40000, &img)) continue;
+        double got[3] = {0, 0, 0};
+        int n = 0;
+        for (int py = 0; py < s.camera.height; py++)
+            for (int px = 0; px < s.camera.width; px++) {
+                lu_vec3 o, d;
+                lu_camera_ray(&s.camera, (float)px + 0.5f, (float)py + 0.5f, &o, &d);
+                double conv = M_PI * exit_fraction(K_ETA) / ((1.0 - fresnel_r(-d.y, K_ETA)) * 2.0 * ft_in);
+                for (int c = 0; c < 3; c++) got[c] += lu_image_px(&img, px, py)[c] * conv;
+                n++;
+            }
+        for (int c = 0; c < 3; c++) {
+            got[c] /= n;
+            fprintf(stderr, "  %s: authored albedo %.3f, rendered %.4f\n", profiles[p], alb[c], got[c]);
+            CHECK_NEAR(got[c], alb[c], 0.01);
+        }
+        lu_image_destroy(&img);
+    }
+    lu_scene_destroy(&s);
+}
+
 static void test_cpu_gpu_agree(void) {
     char json[2048];
     lu_scene s;
     if (!load(slab_json(json, sizeof json, "{\"type\": \"point\", \"position\": [3, 8, -2], \"intensity\": [100, 80, 60]}"), &s))
         return;
-    static const char *const profiles[2] = {"dipole", "multipole"};
-    for (int p = 0; p < 2; p++) {
+    static const char *const profiles[3] = {"dipole", "multipole", "burley"};
+    for (int p = 0; p < 3; p++) {
         lu_image a, b;
         if (!render(&s, profiles[p], LU_BACKEND_CPU, 4000, &a)) continue;
         if (render(&s, profiles[p], LU_BACKEND_GPU, 4000, &b)) {
@@ -629,12 +847,15 @@ int main(void) {
     RUN_TEST(test_dipole_profile_and_total);
     RUN_TEST(test_prefilter_levels);
     RUN_TEST(test_multipole_totals);
+    RUN_TEST(test_burley_vs_walk);
+    RUN_TEST(test_white_furnace);
     RUN_TEST(test_multilayer);
     RUN_TEST(test_sh9_irradiance);
     RUN_TEST(test_relaxation);
     RUN_TEST(test_scene_materials);
     RUN_TEST(test_slab_point_light);
     RUN_TEST(test_slab_directional_multipole);
+    RUN_TEST(test_authored_albedo);
     RUN_TEST(test_cpu_gpu_agree);
     RUN_TEST(test_dragon_scene);
     TEST_EXIT();

@@ -73,6 +73,27 @@ static void test_strict_errors(void) {
                  LU_ERR_SCENE, "$.objects[0].material.preset", NULL);
     expect_error("{" CAMERA ", \"objects\": [{\"mesh\": {\"procedural\": \"box\"}, \"transform\": {\"scale\": 0}}]}",
                  LU_ERR_RANGE, "$.objects[0].transform.scale", NULL);
+    /* Albedo + mean free path authoring. */
+#define TMAT(body) "{" CAMERA ", \"objects\": [{\"mesh\": {\"procedural\": \"box\"}, \"material\": {\"type\": \"translucent\", " body "}}]}"
+    expect_error(TMAT("\"subsurface_albedo\": [0.8, 0.5, 0.3]"), LU_ERR_SCENE, "$.objects[0].material.subsurface_albedo",
+                 "mean_free_path_mm");
+    expect_error(TMAT("\"mean_free_path_mm\": 1"), LU_ERR_SCENE, "$.objects[0].material.mean_free_path_mm",
+                 "subsurface_albedo");
+    expect_error(TMAT("\"subsurface_albedo\": 0.5, \"mean_free_path_mm\": 1, \"sigma_s\": 1"), LU_ERR_SCENE,
+                 "$.objects[0].material.sigma_s", "not both");
+    expect_error(TMAT("\"subsurface_albedo\": 0.5, \"mean_free_path_mm\": 1, \"preset\": \"marble\""), LU_ERR_SCENE,
+                 "$.objects[0].material.preset", "not both");
+    expect_error(TMAT("\"subsurface_albedo\": [0.5, 1.2, 0.5], \"mean_free_path_mm\": 1"), LU_ERR_RANGE,
+                 "$.objects[0].material.subsurface_albedo", "element 1");
+    expect_error(TMAT("\"subsurface_albedo\": [0.5, 0, 0.5], \"mean_free_path_mm\": 1"), LU_ERR_RANGE,
+                 "$.objects[0].material.subsurface_albedo", "> 0");
+    expect_error(TMAT("\"subsurface_albedo\": 0.5, \"mean_free_path_mm\": [1, 2, 0]"), LU_ERR_RANGE,
+                 "$.objects[0].material.mean_free_path_mm", "element 2");
+    expect_error(TMAT("\"subsurface_albedo\": 0.5, \"mean_free_path_mm\": [1, 2]"), LU_ERR_SCENE,
+                 "$.objects[0].material.mean_free_path_mm", "3 numbers");
+    expect_error(TMAT("\"subsurface_albedo\": \"pink\", \"mean_free_path_mm\": 1"), LU_ERR_SCENE,
+                 "$.objects[0].material.subsurface_albedo", NULL);
+#undef TMAT
     /* Syntax errors report line and column. */
     expect_error("{\n  \"camera\": {\n    \"position\": [0, 0, 5],,\n  }\n}", LU_ERR_FORMAT, "bad.json:3:", "syntax");
 }

@@ -74,13 +74,22 @@ typedef struct lu_material {
     lu_coating coatings[LU_MAX_COATINGS];
 } lu_material;
 
-/* Measured coefficients of Jensen et al. 2001 (Table 1), per millimetre. */
+/* Measured coefficients of Jensen et al. 2001 (Table 1), per millimetre, and
+ * presets authored as surface albedo plus mean free path (albedo[0] > 0),
+ * whose coefficients are inverted from those (see "subsurface_albedo"). */
 typedef struct lu_material_preset {
     const char *name;
     float sigma_s_prime[3];
     float sigma_a[3];
     float eta;
+    float albedo[3];        /* authored presets: total diffuse reflectance of the half-space */
+    float mfp_mm[3];        /* and the reduced mean free path 1 / sigma_t' */
 } lu_material_preset;
+/* sigma_s' and sigma_a per mm of a half-space whose total diffuse
+ * reflectance behind relative index eta is albedo (each in (0, 1]) and whose
+ * reduced mean free path 1 / sigma_t' is mfp_mm (each > 0). */
+void lu_material_from_albedo(const float albedo[3], const float mfp_mm[3], float eta, lu_vec3 *sigma_s_prime,
+                             lu_vec3 *sigma_a);
 const lu_material_preset *lu_material_presets(int *count);
 const lu_material_preset *lu_material_preset_find(const char *name);
 /* Absorption from the imaginary part k of a complex index of refraction at

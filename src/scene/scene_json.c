@@ -255,6 +255,42 @@ static lu_result parse_scattering(parse_ctx *c, const cJSON *m, const jpath *mp,
     *sa = lu_v3s(0.01f);
     preset_out[0] = 0;
     bool has_imag = cJSON_HasObjectItem(m, "eta_imag");
+    bool has_alb = cJSON_HasObjectItem(m, "subsurface_albedo"), has_mfp = cJSON_HasObjectItem(m, "mean_free_path_mm");
+    if (has_alb || has_mfp) {
+        /* Authored as artists give it: the half-space's total diffuse
+         * reflectance and the reduced (volume) mean free path 1 / sigma_t',
+         * inverted through the dipole total all 1D profiles share. */
+        if (!has_alb || !has_mfp) {
+            jpath kp = jp_key(mp, has_alb ? "subsurface_albedo" : "mean_free_path_mm");
+            return scene_fail(c, &kp, LU_ERR_SCENE, "needs \"%s\" as well",
+                              has_alb ? "mean_free_path_mm" : "subsurface_albedo");
+        }
+        static const char *const other[] = {"preset", "sigma_s", "sigma_a", "eta_imag", "wavelengths_nm"};
+        for (int i = 0; i < 5; i++)
+            if (cJSON_HasObjectItem(m, other[i])) {
+                jpath kp = jp_key(mp, other[i]);
+                return scene_fail(c, &kp, LU_ERR_SCENE,
+                                  "give either \"subsurface_albedo\" with \"mean_free_path_mm\" or coefficients, not both");
+            }
+        lu_vec3 alb, mfp;
+        TRY(get_vec3(c, m, mp, "subsurface_albedo", lu_v3s(0), 0, 1, true, true, &alb));
+        TRY(get_vec3(c, m, mp, "mean_free_path_mm", lu_v3s(0), 0, 1e6, true, true, &mfp));
+        for (int i = 0; i < 3; i++) {
+            jpath ap = jp_key(mp, "subsurface_albedo"), fp = jp_key(mp, "mean_free_path_mm");
+            if (!(lu_v3_get(alb, i) > 0.0f))
+                return scene_fail(c, &ap, LU_ERR_RANGE, "element %d = %g must be > 0 (no light would scatter back)", i,
+                                  lu_v3_get(alb, i));
+            if (!(lu_v3_get(mfp, i) > 0.0f))
+                return scene_fail(c, &fp, LU_ERR_RANGE, "element %d = %g must be > 0", i, lu_v3_get(mfp, i));
+        }
+        TRY(get_float(c, m, mp, "eta", *eta, 1.0, 4.0, false, eta));
+        TRY(get_float(c, m, mp, "g", 0.0, -0.99, 0.99, false, g));
+        float a3[3] = {alb.x, alb.y, alb.z}, l3[3] = {mfp.x, mfp.y, mfp.z};
+        lu_vec3 sp;
+        lu_material_from_albedo(a3, l3, *eta, &sp, sa);
+        *ss = lu_v3_scale(sp, 1.0f / (1.0f - *g));   /* sigma_s with the phase function's g: (1 - g) sigma_s = sigma_s' */
+        return LU_OK;
+    }
     if (preset) {
         const lu_material_preset *mpre = lu_material_preset_find(preset);
         if (!mpre) {
@@ -310,7 +346,8 @@ static lu_result parse_material(parse_ctx *c, const cJSON *parent, const jpath *
     jpath mp = jp_key(p, key);
     static const char *const keys[] = {"type",     "albedo",         "specular", "shininess", "preset",
                                        "sigma_s",  "sigma_a",        "eta_imag", "wavelengths_nm", "eta",
-                                       "g",        "mm_per_unit",    "coatings", NULL};
+                                       "g",        "mm_per_unit",    "coatings", "subsurface_albedo",
+                                       "mean_free_path_mm", NULL};
     TRY(check_object(c, m, &mp, keys));
     const char *type;
     TRY(get_string(c, m, &mp, "type", false, &type));
@@ -327,7 +364,8 @@ static lu_result parse_material(parse_ctx *c, const cJSON *parent, const jpath *
         return scene_fail(c, &tp, LU_ERR_SCENE, "unknown material type \"%s\" (diffuse, translucent)", type);
     }
     static const char *const tkeys[] = {"type", "preset", "sigma_s", "sigma_a", "eta_imag", "wavelengths_nm", "eta",
-                                        "g", "mm_per_unit", "specular", "shininess", "coatings", NULL};
+                                        "g", "mm_per_unit", "specular", "shininess", "coatings", "subsurface_albedo",
+                                        "mean_free_path_mm", NULL};
     TRY(check_object(c, m, &mp, tkeys));
     out->type = LU_MATERIAL_TRANSLUCENT;
     out->albedo = lu_v3s(0.0f);
@@ -348,7 +386,7 @@ static lu_result parse_material(parse_ctx *c, const cJSON *parent, const jpath *
             jpath ip = jp_index(&cp, i);
             if (!cJSON_IsObject(it)) return scene_fail(c, &ip, LU_ERR_SCENE, "expected an object");
             static const char *const ckeys[] = {"preset", "sigma_s", "sigma_a", "eta_imag", "wavelengths_nm", "eta",
-                                                "g", "thickness_mm", NULL};
+                                                "g", "thickness_mm", "subsurface_albedo", "mean_free_path_mm", NULL};
             TRY(check_object(c, it, &ip, ckeys));
             lu_coating *co = &out->coatings[i];
             lu_vec3 css, csa;

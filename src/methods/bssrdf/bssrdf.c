@@ -2,7 +2,7 @@
  * (Rohat 2011; docs/bssrdf.md).
  *
  * prepare: per translucent object, its profile table (dipole / normalised
- *   diffusion 1D, multipole 2D, coated stacks by FFT; r_max by Simpson,
+ *   diffusion / photon beam diffusion 1D, multipole 2D, coated stacks by FFT; r_max by Simpson,
  *   eps), and for environment lights: the SH9 projection of the maps and
  *   surface samples (area CDF, N_s = A / (pi l_u^2), repulsion relaxation)
  *   with their Fresnel-weighted SH irradiance as flux.
@@ -91,9 +91,10 @@ enum {
 };
 
 static const lu_param_desc k_params[P_COUNT] = {
-    [P_PROFILE] = {"profile", LU_PARAM_CHOICE, 0, 0, 2, "dipole|multipole|burley",
+    [P_PROFILE] = {"profile", LU_PARAM_CHOICE, 0, 0, 3, "dipole|multipole|burley|pbd",
                    "diffusion profile: Jensen dipole (1D), Donner-Jensen multipole R and T over thickness (2D), "
-                   "Christensen-Burley normalised diffusion (1D); coated materials always use multipole layers"},
+                   "Christensen-Burley normalised diffusion (1D), photon beam diffusion plus single scattering "
+                   "(1D, tabulated); coated materials always use multipole layers"},
     [P_SPLATS] = {"splats", LU_PARAM_INT, 4096, 1, 16777216, NULL,
                   "light samples per light and translucent object (an N x M grid over its region of interest)"},
     [P_MAP_RES] = {"map_res", LU_PARAM_INT, 512, 16, 8192, NULL,
@@ -369,6 +370,9 @@ static void fill_material(bssrdf_state *st, int o, const lu_object *ob) {
         m[21] = t->prof.kind ? t->prof.r_max_t : 0.0f;
         m[22] = t->prof.kind ? t->prof.d_t_cut : 0.0f;
         m[23] = (float)lu_bssrdf_profile_level_entries(&t->prof);
+        double k[3];   /* k[0] = 2 pi int F_t mu dmu = pi (1 - F_dr,ext) */
+        lu_bssrdf_sh_kernel(t->eta_top, k);
+        m[24] = (float)(M_PI / k[0]);
     }
     m[9] = mat->shininess;
     m[10] = ti >= 0 ? 0.0f : mat->albedo.x;
@@ -1295,7 +1299,8 @@ bool lu_bssrdf_last_stats(const lu_renderer *r, lu_bssrdf_frame_stats *out) {
 
 const lu_method lu_method_bssrdf = {
     .name = "bssrdf",
-    .summary = "translucent objects by diffusion profiles (dipole, multipole, coated stacks, normalised diffusion) and "
+    .summary = "translucent objects by diffusion profiles (dipole, multipole, coated stacks, normalised diffusion, "
+               "photon beam diffusion) and "
                "splatting from light-space sample maps; environment light by SH9 and relaxed surface samples",
     .backends = LU_BACKEND_CPU | LU_BACKEND_GPU,
     .params = k_params,

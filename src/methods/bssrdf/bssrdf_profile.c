@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "methods/bssrdf/lu_diffusion.h"
+#include "methods/bssrdf/profile_pbd.h"
 #include "kernels/lu_optics.h"
 
 void lu_bssrdf_profile_desc_default(lu_bssrdf_profile_desc *d) {
@@ -35,6 +36,7 @@ typedef struct radial_ctx {
     float d;             /* multipole thickness */
     int pairs, transmit;
     float burley_a, burley_h;
+    const lu_bssrdf_pbd_table *pbd;
 } radial_ctx;
 
 static double radial_eval(const void *vctx, double r) {
@@ -45,6 +47,7 @@ static double radial_eval(const void *vctx, double r) {
     case LU_BSSRDF_DIPOLE: return lu_k_dipole1((float)r, s, a, l, zb0);
     case LU_BSSRDF_MULTIPOLE: return lu_k_multipole1((float)r, c->d, c->pairs, c->transmit, s, a, l, zb0, zbd);
     case LU_BSSRDF_BURLEY: return r > 0.0 ? lu_k_burley1((float)r, c->burley_a, c->burley_h) : 0.0;
+    case LU_BSSRDF_PBD: return lu_bssrdf_pbd_eval(c->pbd, a, r / l) / ((double)l * l);
     }
     return 0.0;
 }
@@ -128,6 +131,17 @@ void lu_bssrdf_slab_totals(double sigma_sp, double sigma_a, double eta_top, doub
     *t_total = alpha * tt;
 }
 
+double lu_bssrdf_invert_albedo(double albedo, double eta) {
+    double lo = 0.0, hi = 1.0;
+    for (int i = 0; i < 64; i++) {
+        double mid = 0.5 * (lo + hi), r, t;
+        lu_bssrdf_slab_totals(mid, 1.0 - mid, eta, eta, INFINITY, &r, &t);
+        if (r < albedo) lo = mid;
+        else hi = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
 /* ---- table helpers ------------------------------------------------------------------ */
 
 /* Entry i of an n-entry table sits at r = r_max (i / (n - 1))^2: the
@@ -205,6 +219,10 @@ static lu_result build_1d(const lu_bssrdf_layer *layer, const lu_bssrdf_profile_
     radial_ctx ctx = {0};
     ctx.model = desc->model;
     ctx.k = layer_diffusion(layer, 1, 0);
+    if (desc->model == LU_BSSRDF_PBD) {
+        lu_result r = lu_bssrdf_pbd_table_get(layer->eta, &ctx.pbd, err);
+        if (r != LU_OK) return r;
+    }
     double r_max = 0.0;
     float burley_h[3], burley_a[3];
     for (int c = 0; c < 3; c++) {
@@ -214,15 +232,17 @@ static lu_result build_1d(const lu_bssrdf_layer *layer, const lu_bssrdf_profile_
         radial_range(l, s, &r_lo, &r_hi);
         ctx.ch = c;
         if (desc->model == LU_BSSRDF_BURLEY) {
-            /* Matched to the dipole's total; the diffuse mean free path 1/sigma_tr
-             * is floored at 1000 mfp for non-absorbing media, where it is infinite. */
+            /* Matched to the dipole's total (the same albedo, and so the same
+             * inversion of authored albedos, for every profile). */
             burley_a[c] = lu_k_dipole_total1(s, a, l, zb);
-            float ell = s > 1e-3f / l ? 1.0f / s : 1e3f * l;
-            burley_h[c] = ell / lu_k_burley_shape(burley_a[c]);
+            burley_h[c] = lu_k_burley_h(burley_a[c], l);
             ctx.burley_a = burley_a[c];
             ctx.burley_h = burley_h[c];
             r_hi = 60.0 * burley_h[c];
             p->total_closed[c] = burley_a[c];
+        } else if (desc->model == LU_BSSRDF_PBD) {
+            p->total_closed[c] = lu_bssrdf_pbd_total(ctx.pbd, a);  /* the table's own integral */
+            r_hi = fmin(r_hi, lu_bssrdf_pbd_r_end(ctx.pbd) * l);
         } else {
             p->total_closed[c] = lu_k_dipole_total1(s, a, l, zb);
         }
@@ -242,10 +262,10 @@ static lu_result build_1d(const lu_bssrdf_layer *layer, const lu_bssrdf_profile_
             ctx.ch = c;
             ctx.burley_a = desc->model == LU_BSSRDF_BURLEY ? burley_a[c] : 0.0f;
             ctx.burley_h = desc->model == LU_BSSRDF_BURLEY ? burley_h[c] : 1.0f;
-            /* Burley is singular at 0: the first entry holds its value at a
-             * third of the first step (where 2 pi r f matches its segment mean). */
-            double r = i == 0 && desc->model == LU_BSSRDF_BURLEY ? table_r(1, p->nr, r_max) / 3.0
-                                                                 : table_r(i, p->nr, r_max);
+            /* Burley and pbd are singular at 0: the first entry holds the value
+             * at a third of the first step (where 2 pi r f matches its segment mean). */
+            bool singular = desc->model == LU_BSSRDF_BURLEY || desc->model == LU_BSSRDF_PBD;
+            double r = i == 0 && singular ? table_r(1, p->nr, r_max) / 3.0 : table_r(i, p->nr, r_max);
             p->table[3 * i + c] = (float)radial_eval(&ctx, r);
         }
     }

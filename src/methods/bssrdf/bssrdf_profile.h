@@ -16,7 +16,8 @@
 typedef enum lu_bssrdf_model {
     LU_BSSRDF_DIPOLE = 0,
     LU_BSSRDF_MULTIPOLE = 1,
-    LU_BSSRDF_BURLEY = 2
+    LU_BSSRDF_BURLEY = 2,
+    LU_BSSRDF_PBD = 3     /* photon beam diffusion + single scattering (profile_pbd.h), 1D */
 } lu_bssrdf_model;
 
 /* One homogeneous layer. */
@@ -60,7 +61,8 @@ typedef struct lu_bssrdf_profile {
      * so that interpolating between rows stays accurate. */
     float t_decay[3];
     /* Energy bookkeeping (kind 0; kind 1: the thickest row's reflectance): */
-    double total_closed[3];   /* closed form (dipole, Burley: the albedo; multipole: 1D Green's function) */
+    double total_closed[3];   /* closed form (dipole, Burley: the albedo; multipole: 1D Green's function;
+                               * pbd: the (albedo, radius) table's own integral) */
     double total_numeric[3];  /* Simpson of 2 pi r R(r) over [0, infinity) in log r */
     double total_table[3];    /* 2 pi r times the table as interpolated, over [0, r_max] */
 } lu_bssrdf_profile;
@@ -97,6 +99,13 @@ double lu_bssrdf_eps_radius(lu_bssrdf_radial_fn f, const void *ctx, double r_lo,
  * form): one channel; d = INFINITY gives the dipole total. */
 void lu_bssrdf_slab_totals(double sigma_sp, double sigma_a, double eta_top, double eta_bottom, double d, double *r_total,
                            double *t_total);
+
+/* The reduced albedo alpha' = sigma_s' / sigma_t' whose half-space total
+ * diffuse reflectance (the dipole's closed form, which the dipole, the
+ * thick-slab multipole and normalised diffusion all integrate to) is
+ * `albedo` behind relative index eta: bisection, the total rising
+ * monotonically in alpha'. albedo in (0, 1]. */
+double lu_bssrdf_invert_albedo(double albedo, double eta);
 
 /* ---- multi-layer combination (frequency domain) ------------------------------ */
 

@@ -6,7 +6,12 @@
  * the surface area the sample represents: A_vis / N_s times E(x_s) in the
  * thesis' Eq. 4.6), its normal, and the light-space thickness of the object
  * behind it. A visible point x_o of the same object receives
- *     L(x_o) = F_t(eta, w_o) / pi * sum_s Phi_s P_s(x_o),
+ *     L(x_o) = F_t(eta, w_o) / (pi (1 - F_dr,ext)) * sum_s Phi_s P_s(x_o),
+ * 1 - F_dr,ext = 2 int_0^1 F_t(eta, mu) mu dmu being what that exit term lets
+ * out over the hemisphere: the profiles are exitances already past the
+ * boundary (the dipole's net flux, the random walk's tally of what leaves), so
+ * the exit term only distributes them over directions and must integrate to 1
+ * (pbrt's c = 1 - 2 FM1(1/eta)); without it 6 % is lost at eta 1.3.
  * P = R_d(|x_s - x_o|) for a 1D profile (dipole, normalised diffusion), and
  * P = (1 + n_s.n_o)/2 R(|x_s - x_o|, d) + (1 - n_s.n_o)/2 T(|x_b - x_o|, d)
  * for the multipole / multi-layer 2D profiles (Donner and Jensen's
@@ -88,6 +93,7 @@ struct lu_k_bssrdf_mat {
     float r_max_t;          /* 2D: radius of the T rows */
     float d_t_cut;          /* 2D: no transmission through anything thicker */
     int level_size;         /* entries in one prefilter level (levels follow each other) */
+    float exit_norm;        /* 1 / (1 - F_dr,ext(eta)): makes the exit term integrate to 1 */
 };
 LU_TYPEDEF(lu_k_bssrdf_mat)
 
@@ -117,6 +123,7 @@ LU_FN lu_k_bssrdf_mat lu_k_bssrdf_mat_load(LU_CTX_PARAM, int object) {
     m.r_max_t = lu_k_bssrdf_fetch(LU_CTX, b, o + 21);
     m.d_t_cut = lu_k_bssrdf_fetch(LU_CTX, b, o + 22);
     m.level_size = lu_int(lu_k_bssrdf_fetch(LU_CTX, b, o + 23));
+    m.exit_norm = lu_k_bssrdf_fetch(LU_CTX, b, o + 24);
     return m;
 }
 
@@ -289,7 +296,7 @@ LU_FN vec3 lu_k_bssrdf_sh9(LU_CTX_PARAM, int first, vec3 n) {
 
 /* Final radiance of a pixel: g is its G-buffer texel, scatter the splat sum
  * sum_s Phi_s P_s there, view_dir the unit camera ray. Translucent surfaces:
- * F_t(w_o)/pi times the scatter, plus the boundary's Blinn-Phong highlight
+ * F_t(w_o) exit_norm / pi times the scatter, plus the boundary's Blinn-Phong highlight
  * weighted by F_r(w_o) (as the reference weights boundary reflection) and a
  * mirror reflection of the environment times F_r. Opaque surfaces: Lambert +
  * Blinn-Phong per light, shadowed through the light-space maps, and the SH9
@@ -306,7 +313,7 @@ LU_FN vec3 lu_k_bssrdf_shade(LU_CTX_PARAM, lu_k_gbuf g, vec3 scatter, vec3 view_
     float spec_weight = 1.0f;
     if (m.translucent != 0) {
         float fr = lu_k_fresnel_reflectance(cos_o, m.eta);
-        L = lu_v3_scale(scatter, (1.0f - fr) * LU_K_INV_PI);
+        L = lu_v3_scale(scatter, (1.0f - fr) * m.exit_norm * LU_K_INV_PI);
         albedo = lu_v3s(0.0f);
         spec_weight = fr;
         vec3 refl = lu_v3_sub(view_dir, lu_v3_scale(n, 2.0f * lu_v3_dot(view_dir, n)));

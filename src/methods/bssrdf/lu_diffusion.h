@@ -29,8 +29,13 @@
  *
  * Normalised diffusion (Christensen and Burley 2015): R(r) = A (e^{-r/h} +
  * e^{-r/(3h)}) / (8 pi h r), which integrates to the albedo A over the plane;
- * h = ell / S with ell the diffuse mean free path 1/sigma_tr and S the
- * searchlight shape factor 1.85 - A + 7 |A - 0.8|^3 of their paper. */
+ * h = ell / s(A). Their fits pair s with a length: for light entering
+ * perpendicularly (the searchlight set-up, the one the BSSRDF's pencil beam
+ * is), s = 1.85 - A + 7 |A - 0.8|^3 with ell the volume mean free path
+ * 1/sigma_t' (published mean error 5.5 % against Monte Carlo), and
+ * s = 3.5 + 100 (A - 0.33)^4 with ell the diffuse mean free path 1/sigma_tr
+ * (7.7 %). The volume pairing is used: it is the more accurate, and it stays
+ * finite for a non-absorbing medium, where 1/sigma_tr is infinite. */
 #ifndef LU_DIFFUSION_H
 #define LU_DIFFUSION_H
 
@@ -123,10 +128,14 @@ LU_FN float lu_k_burley1(float r, float a, float h) {
     return a * (lu_exp(-r / h) + lu_exp(-r / (3.0f * h))) / (8.0f * LU_K_PI * h * r);
 }
 
-/* Searchlight shape factor S(A) of Christensen and Burley. */
+/* Christensen and Burley's searchlight shape factor s(A) for the volume mean
+ * free path 1/sigma_t' (not for 1/sigma_tr, which has its own fit). */
 LU_FN float lu_k_burley_shape(float a) {
     float t = lu_abs(a - 0.8f);
     return 1.85f - a + 7.0f * t * t * t;
 }
+
+/* Shape length h of one channel: albedo a, reduced mean free path l = 1/sigma_t'. */
+LU_FN float lu_k_burley_h(float a, float l) { return l / lu_k_burley_shape(a); }
 
 #endif

@@ -19,6 +19,7 @@ typedef struct lu_bssrdf_mc_result {
     double dr;
     double *r_profile, *t_profile;   /* bins each; per area */
     double *r_multiple;              /* R of paths that scattered at least twice (what diffusion models) */
+    double *r_profile_stderr;        /* standard error of each r_profile bin (batch means over the chunks) */
     double r_total, t_total;         /* all exiting power, per unit entering power */
     double r_multiple_total;
     /* R of paths that scattered at least twice with no face reflection
@@ -27,6 +28,7 @@ typedef struct lu_bssrdf_mc_result {
      * (docs/bssrdf.md, "Where the error comes from"). */
     double r_multiple_unreflected_total;
     double r_stderr;                 /* standard error of r_total */
+    double dropped;                  /* weight of walks cut at 10^6 events, per unit entering power */
 } lu_bssrdf_mc_result;
 
 lu_result lu_bssrdf_mc_slab(double sigma_sp, double sigma_a, double eta, double thickness, long long paths,
