@@ -85,8 +85,11 @@ s['lights'] = [{'type': 'directional', 'direction': [0, 1, 0], 'irradiance': [1,
 print(json.dumps(s))" >"$f.json"
       [[ -s $f.pathtrace.pfm ]] || nice -n "$NICE" "$LUCENT" render "$f.json" --method pathtrace \
         --set pathtrace.spp="$XSPP" --set pathtrace.seed=7 -o "$f.pathtrace.pfm" 2>/dev/null
-      [[ $eta == 1.0 || -s $f.bssrdf.pfm ]] || nice -n "$NICE" "$LUCENT" render "$f.json" --method bssrdf \
-        -o "$f.bssrdf.pfm" 2>/dev/null
+      [[ $eta == 1.0 ]] && continue
+      for p in "${PROFILES[@]}"; do
+        [[ -s $f.$p.pfm ]] || nice -n "$NICE" "$LUCENT" render "$f.json" --method bssrdf \
+          --set bssrdf.profile=$p -o "$f.$p.pfm" 2>/dev/null || rm -f "$f.$p.pfm"
+      done
     done
   done
 }
@@ -123,11 +126,12 @@ table() {
   echo
   echo "| half-space exitance under E = 1 at normal incidence | R | G | B |"
   echo "|---|---|---|---|"
-  for row in "1.5 pathtrace" "1.5 bssrdf" "1.0 pathtrace"; do
+  for row in "1.5 pathtrace" "1.5 dipole" "1.5 multipole" "1.5 burley" "1.5 pbd" "1.0 pathtrace"; do
     set -- $row
     args=()
     for wm in "${GL4[@]}"; do args+=("$wm:$X/eta$1.mu${wm#*:}.$2.pfm"); done
-    echo "| $2, eta $1 | $($analyze exitance "${args[@]}" 2>/dev/null | sed 's/ / | /g' || echo pending) |"
+    m=$($analyze exitance "${args[@]}" 2>/dev/null) || m=pending
+    echo "| $2, eta $1 | ${m// / | } |"
   done
   echo
   local M=$B/bunny_front.dipole.pfm
