@@ -5,7 +5,7 @@ BUILD_ASAN  ?= build-asan
 JOBS        ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
-.PHONY: all run test test-fast asan tsan fuzz setup build clean
+.PHONY: all run test test-fast test-quick asan tsan fuzz setup build clean
 
 all: build
 
@@ -31,6 +31,11 @@ test: build
 
 test-fast: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+# The tests labelled fast (CMakeLists.txt: every test is fast or slow, and gpu
+# when it needs a GPU context).
+test-quick: build
+	cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -L fast
 
 # intercept_tls_get_addr=0: GCC 12's LeakSanitizer misreads glibc >= 2.25's
 # dynamic TLS blocks (libLLVM's, via llvmpipe) and can crash its tracer at exit;

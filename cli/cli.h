@@ -8,6 +8,17 @@
 /* Exit codes (documented in `lucent --help` and the README). */
 enum { LU_EXIT_OK = 0, LU_EXIT_FAIL = 1, LU_EXIT_USAGE = 2, LU_EXIT_THRESHOLD = 3 };
 
+/* A renderer's stats (zeros for NULL). */
+static inline lu_renderer_stats lu_cli_stats(const lu_renderer *r) {
+    lu_renderer_stats st = {0};
+    if (r) lu_renderer_get_stats(r, &st, NULL);
+    return st;
+}
+
+/* Reads lucent's environment variables into the library's lu_host (the
+ * library reads none): LU_EXIT_OK, or the exit code after a message. */
+int lu_cli_host_from_env(void);
+
 int lu_cmd_render(int argc, char **argv);
 int lu_cmd_compare(int argc, char **argv);
 int lu_cmd_info(int argc, char **argv);

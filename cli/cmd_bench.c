@@ -383,7 +383,7 @@ static lu_result bench_one(motion_state *ms, const char *method, lu_backend back
     lu_renderer *r;
     lu_result res = lu_renderer_create(method, ms->scene, settings, backend, &r, err);
     if (res != LU_OK) return res;
-    out->prepare_ms = r->prepare_ms;
+    out->prepare_ms = lu_cli_stats(r).prepare_ms;
     double *ms_list = calloc((size_t)frames, sizeof *ms_list);
     if (!ms_list) {
         lu_renderer_destroy(r);
@@ -399,7 +399,7 @@ static lu_result bench_one(motion_state *ms, const char *method, lu_backend back
         res = motion_set(ms, ms->kind == MOTION_STILL ? 0 : k, err);
         if (untracked) lu_renderer_invalidate(r, LU_CHANGE_ALL);
         if (res == LU_OK) res = lu_renderer_render(r, ms->scene, last, err);
-        if (res == LU_OK) ms_list[k - 1] = r->last_render_ms;
+        if (res == LU_OK) ms_list[k - 1] = lu_cli_stats(r).frame_ms;
         if (res == LU_OK && k == 1) res = image_copy(last, first, err);
     }
     if (res == LU_OK) res = motion_set(ms, 0, err);
@@ -425,7 +425,7 @@ static lu_result render_truth(motion_state *ms, int k, const lu_kvlist *settings
     lu_renderer *rd = NULL;
     if (r == LU_OK) r = lu_renderer_create("reference", ms->scene, settings, LU_BACKEND_CPU, &rd, err);
     if (r == LU_OK) r = lu_renderer_render(rd, ms->scene, img, err);
-    if (r == LU_OK) *ms_out = rd->last_render_ms;
+    if (r == LU_OK) *ms_out = lu_cli_stats(rd).frame_ms;
     lu_renderer_destroy(rd);
     lu_result r2 = motion_set(ms, 0, err);
     return r != LU_OK ? r : r2;

@@ -41,7 +41,7 @@ static void save_partial(void *user, const lu_image *partial, int done, int tota
     lu_error err = {0};
     if (lu_image_save(partial, s->path, s->save, &err) != LU_OK)
         fprintf(stderr, "lucent render: progressive write failed: %s\n", err.message);
-    else if (!getenv("LUCENT_QUIET"))
+    else if (lu_log_enabled(LU_LOG_INFO))
         fprintf(stderr, "lucent render: %s after %d of %d passes\n", s->path, done, total);
 }
 
@@ -131,7 +131,8 @@ int lu_cmd_render(int argc, char **argv) {
         rc = lu_cli_error("render", &err);
     } else {
         fprintf(stderr, "lucent render: %s %dx%d with %s on %s: prepare %.1f ms, render %.1f ms\n", out_path, img.width,
-                img.height, method, lu_backend_name(backend), r->prepare_ms, r->last_render_ms);
+                img.height, method, lu_backend_name(backend), lu_cli_stats(r).prepare_ms,
+                lu_cli_stats(r).frame_ms);
     }
     lu_renderer_destroy(r);
     lu_image_destroy(&img);

@@ -351,9 +351,9 @@ static bool render_frame(viewer *v) {
         v->r = v->rq[q];
     }
     v->need_create = false;
-    v->prepare_ms = v->r->prepare_ms;
+    v->prepare_ms = lu_cli_stats(v->r).prepare_ms;
     if (lu_renderer_render(v->r, &at, &v->img, &err) != LU_OK) goto fail;
-    v->last_ms = v->r->last_render_ms + (prog ? v->r->prepare_ms : 0.0);
+    v->last_ms = lu_cli_stats(v->r).frame_ms + (prog ? v->prepare_ms : 0.0);
     size_t n = (size_t)v->img.width * v->img.height * 3;
     if (prog) {
         if (v->passes == 0) memset(v->accum, 0, n * sizeof(float));
@@ -1069,7 +1069,7 @@ int lu_cmd_view(int argc, char **argv) {
         double render_ms = -1.0;
         if (render_now) {
             if (render_frame(&v)) {
-                render_ms = v.r->last_render_ms;
+                render_ms = lu_cli_stats(v.r).frame_ms;
                 upsample(&v);
                 update_error(&v);
             } else if (script) {

@@ -118,18 +118,8 @@ int main(int argc, char **argv) {
         printf("lucent %s\n", LU_VERSION_STRING);
         return LU_EXIT_OK;
     }
-    /* The library would ignore a bad value; on the command line it is a
-     * mistake worth stopping for. */
-    const char *threads = getenv("LUCENT_THREADS");
-    if (threads && *threads) {
-        lu_error err = {0};
-        int n;
-        if (lu_thread_count_parse(threads, "LUCENT_THREADS", &n, &err) != LU_OK ||
-            lu_set_thread_count(n, &err) != LU_OK) {
-            fprintf(stderr, "lucent: error: %s\n", err.message);
-            return LU_EXIT_USAGE;
-        }
-    }
+    int host = lu_cli_host_from_env();
+    if (host != LU_EXIT_OK) return host;
     static const struct {
         const char *name;
         int (*fn)(int, char **);

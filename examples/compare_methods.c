@@ -9,7 +9,9 @@ static lu_result render(const char *method, const lu_scene *scene, lu_image *out
     lu_renderer *r = NULL;
     lu_result res = lu_renderer_create(method, scene, NULL, LU_BACKEND_CPU, &r, err);
     if (res == LU_OK) res = lu_renderer_render(r, scene, out, err);
-    if (res == LU_OK) *ms = r->last_render_ms;
+    lu_renderer_stats st;
+    if (res == LU_OK) res = lu_renderer_get_stats(r, &st, err);
+    if (res == LU_OK) *ms = st.frame_ms;
     lu_renderer_destroy(r);
     return res;
 }

@@ -75,7 +75,9 @@ static double time_frames(lu_scene *s, const char *samples, lu_backend be, int f
             double c0 = cpu_ms();
             lu_renderer_render(r, s, &img, &err);
             cpu[i] = cpu_ms() - c0;
-            ms[i] = r->last_render_ms;
+            lu_renderer_stats st;
+            lu_renderer_get_stats(r, &st, NULL);
+            ms[i] = st.frame_ms;
         }
         qsort(ms, (size_t)n, sizeof ms[0], cmp_double);
         qsort(cpu, (size_t)n, sizeof cpu[0], cmp_double);

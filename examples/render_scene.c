@@ -24,7 +24,9 @@ int main(int argc, char **argv) {
         fprintf(stderr, "%s\n", err.message);
         rc = 1;
     } else {
-        printf("%s: prepare %.1f ms, render %.1f ms\n", argv[3], renderer->prepare_ms, renderer->last_render_ms);
+        lu_renderer_stats st;
+        lu_renderer_get_stats(renderer, &st, NULL);
+        printf("%s: prepare %.1f ms, render %.1f ms\n", argv[3], st.prepare_ms, st.frame_ms);
     }
     lu_renderer_destroy(renderer);
     lu_image_destroy(&image);

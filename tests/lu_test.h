@@ -5,6 +5,8 @@
 
 #include <lucent/lucent.h>
 #include <dirent.h>
+
+#include "backends/gpu.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -129,6 +131,26 @@ static inline void lu_test_remove_dir(const char *dir) {
         fprintf(stderr, "%-48s %s\n", #fn,             \
                 lu_test_failures == lu_before_ ? "ok" : "FAILED"); \
     } while (0)
+
+/* A test that cannot run in this build (a GPU test in a build without the GPU
+ * backend) exits with this code, which CTest reports as skipped, not passed
+ * (SKIP_RETURN_CODE in CMakeLists.txt). */
+#define LU_TEST_SKIP_CODE 77
+#define SKIP_TEST(fn, why) fprintf(stderr, "%-48s skipped: %s\n", #fn, why)
+/* Ends main: failures fail; otherwise the program counts as skipped. */
+#define TEST_EXIT_SKIPPED(why)                                                                  \
+    do {                                                                                        \
+        fprintf(stderr, "%d checks, %d failed; skipped: %s\n", lu_test_checks, lu_test_failures, why); \
+        return lu_test_failures ? EXIT_FAILURE : LU_TEST_SKIP_CODE;                              \
+    } while (0)
+
+/* True (with a line saying so) when b is the GPU and this build has no GPU
+ * backend: a test's GPU comparison is skipped there, not counted as passed. */
+static inline bool lu_test_skip_gpu(lu_backend b) {
+    if (b != LU_BACKEND_GPU || lu_gpu_compiled_in()) return false;
+    fprintf(stderr, "  GPU part skipped: built without the GPU backend\n");
+    return true;
+}
 
 #define TEST_EXIT()                                                                        \
     do {                                                                                   \

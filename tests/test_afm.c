@@ -236,6 +236,7 @@ static void test_map_vs_exact(void) {
 }
 
 static bool render(const lu_scene *s, const char *method, lu_backend backend, lu_image *img, const char *extra) {
+    if (lu_test_skip_gpu(backend)) return false;
     lu_kvlist set = {0};
     lu_error err = {0};
     if (extra) lu_kv_parse_assignment(&set, extra, &err);
@@ -344,6 +345,7 @@ static void test_gpu_matches_cpu(void) {
 
 /* The GPU map build (afm_build.comp) against the CPU build of the same views. */
 static void test_gpu_map_matches_cpu(const char *json_path) {
+    if (lu_test_skip_gpu(LU_BACKEND_GPU)) return;
     lu_scene s;
     lu_error err = {0};
     lu_result r = lu_scene_load(json_path, &s, &err);

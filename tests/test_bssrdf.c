@@ -589,6 +589,7 @@ static bool load(const char *json, lu_scene *s) {
 }
 
 static bool render(const lu_scene *s, const char *profile, lu_backend backend, int splats, lu_image *img) {
+    if (lu_test_skip_gpu(backend)) return false;
     lu_kvlist set = {0};
     lu_error err;
     double n = splats, zero = 0, eps = 1e-3, res = 256;

@@ -140,57 +140,120 @@ static void test_parallel_for(void) {
     free(out);
 }
 
-/* The cache folder's precedence: the host's setting, LUCENT_CACHE_DIR, an
- * absolute XDG_CACHE_HOME, HOME; none of them is an error. */
+/* The cache folder: the conventional one's precedence (LUCENT_CACHE_DIR, an
+ * absolute XDG_CACHE_HOME, HOME; none of them is an error), the host's
+ * setting, and no disk cache without one. */
 static void test_cache_dir(void) {
     char dir[1024], path[1100];
     lu_error err = {0};
-    const char *keep_home = getenv("HOME");
-    char home[1024];
-    snprintf(home, sizeof home, "%s", keep_home ? keep_home : "");
-    unsetenv("LUCENT_CACHE_DIR");
-    unsetenv("XDG_CACHE_HOME");
-    setenv("HOME", "/h", 1);
-    CHECK_OK(lu_cache_dir(dir, sizeof dir, &err), &err);
+    CHECK_OK(lu_cache_dir_conventional(NULL, NULL, "/h", dir, sizeof dir, &err), &err);
     CHECK_MSG(strcmp(dir, "/h/.cache/lucent") == 0, "%s", dir);
-    setenv("XDG_CACHE_HOME", "relative/ignored", 1);
-    CHECK_OK(lu_cache_dir(dir, sizeof dir, &err), &err);
+    CHECK_OK(lu_cache_dir_conventional("", "relative/ignored", "/h", dir, sizeof dir, &err), &err);
     CHECK_MSG(strcmp(dir, "/h/.cache/lucent") == 0, "%s", dir);
-    setenv("XDG_CACHE_HOME", "/x", 1);
-    CHECK_OK(lu_cache_dir(dir, sizeof dir, &err), &err);
+    CHECK_OK(lu_cache_dir_conventional(NULL, "/x", "/h", dir, sizeof dir, &err), &err);
     CHECK_MSG(strcmp(dir, "/x/lucent") == 0, "%s", dir);
-    setenv("LUCENT_CACHE_DIR", "/e", 1);
-    CHECK_OK(lu_cache_path("f.bin", false, path, sizeof path, &err), &err);
-    CHECK_MSG(strcmp(path, "/e/f.bin") == 0, "%s", path);
+    CHECK_OK(lu_cache_dir_conventional("/e", "/x", "/h", dir, sizeof dir, &err), &err);
+    CHECK_MSG(strcmp(dir, "/e") == 0, "%s", dir);
+    CHECK(lu_cache_dir_conventional(NULL, NULL, NULL, dir, sizeof dir, &err) == LU_ERR_IO);
+    CHECK(strstr(err.message, "LUCENT_CACHE_DIR") != NULL);
+    /* the library itself: no folder until the host names one */
+    CHECK(!lu_cache_enabled());
+    CHECK(lu_cache_path("f.bin", false, path, sizeof path, &err) == LU_ERR_UNSUPPORTED);
     CHECK_OK(lu_set_cache_dir("/s", &err), &err);
-    CHECK_OK(lu_cache_dir(dir, sizeof dir, &err), &err);
-    CHECK_MSG(strcmp(dir, "/s") == 0, "%s", dir);
+    CHECK(lu_cache_enabled());
+    CHECK_OK(lu_cache_path("f.bin", false, path, sizeof path, &err), &err);
+    CHECK_MSG(strcmp(path, "/s/f.bin") == 0, "%s", path);
     CHECK(lu_set_cache_dir("", &err) == LU_ERR_INVALID_ARG);
     CHECK_OK(lu_set_cache_dir(NULL, &err), &err);
-    unsetenv("LUCENT_CACHE_DIR");
-    unsetenv("XDG_CACHE_HOME");
-    unsetenv("HOME");
-    CHECK(lu_cache_dir(dir, sizeof dir, &err) == LU_ERR_IO);
-    CHECK(strstr(err.message, "LUCENT_CACHE_DIR") != NULL);
+    CHECK(lu_cache_dir(dir, sizeof dir, &err) == LU_ERR_UNSUPPORTED);
     /* create_dir makes the nested folder */
     char tmpl[] = "/tmp/lu_cache_XXXXXX";
     CHECK(mkdtemp(tmpl) != NULL);
     char nested[200];
     snprintf(nested, sizeof nested, "%s/a/b", tmpl);
-    setenv("LUCENT_CACHE_DIR", nested, 1);
+    lu_host host = {.cache_dir = nested};
+    CHECK_OK(lu_host_set(&host, &err), &err);
+    nested[0] = '\0';   /* the library keeps its own copy */
     CHECK_OK(lu_cache_path("x", true, path, sizeof path, &err), &err);
+    snprintf(nested, sizeof nested, "%s/a/b", tmpl);
     struct stat st;
     CHECK(stat(nested, &st) == 0 && S_ISDIR(st.st_mode));
     rmdir(nested);
     snprintf(nested, sizeof nested, "%s/a", tmpl);
     rmdir(nested);
     rmdir(tmpl);
-    unsetenv("LUCENT_CACHE_DIR");
-    if (home[0]) setenv("HOME", home, 1);
+    CHECK_OK(lu_host_set(NULL, &err), &err);
+    CHECK(!lu_cache_enabled());
+}
+
+/* The host's hooks: every library allocation passes the allocator (counted
+ * here against the frees), the log receives what the library reports, and
+ * bad hosts are refused naming the field. */
+typedef struct counting {
+    long allocs, reallocs, frees;
+    char last_log[256];
+    int logs;
+} counting;
+static void *count_alloc(size_t n, void *u) { ((counting *)u)->allocs++; return malloc(n); }
+static void *count_realloc(void *p, size_t n, void *u) { ((counting *)u)->reallocs++; return realloc(p, n); }
+static void count_free(void *p, void *u) { ((counting *)u)->frees++; free(p); }
+static void count_log(lu_log_level level, const char *msg, void *u) {
+    counting *c = u;
+    c->logs++;
+    snprintf(c->last_log, sizeof c->last_log, "%d:%s", (int)level, msg);
+}
+
+static void test_host(void) {
+    lu_error err = {0};
+    CHECK(lu_version() == (uint32_t)LU_VERSION);
+    CHECK(strcmp(lu_version_string(), LU_VERSION_STRING) == 0);
+    char v[32];
+    snprintf(v, sizeof v, "%d.%d.%d", LU_VERSION_MAJOR, LU_VERSION_MINOR, LU_VERSION_PATCH);
+    CHECK_MSG(strcmp(v, LU_VERSION_STRING) == 0, "%s vs %s", v, LU_VERSION_STRING);
+
+    lu_host half = {.alloc = count_alloc};
+    CHECK(lu_host_set(&half, &err) == LU_ERR_INVALID_ARG && strstr(err.message, "together"));
+    lu_host bad_threads = {.threads = LU_MAX_THREADS + 1};
+    CHECK(lu_host_set(&bad_threads, &err) == LU_ERR_RANGE && strstr(err.message, "threads"));
+
+    counting c = {0};
+    lu_host host = {.alloc = count_alloc, .realloc = count_realloc, .free = count_free, .log = count_log,
+                    .threads = 3, .user = &c};
+    CHECK_OK(lu_host_set(&host, &err), &err);
+    lu_host got;
+    lu_host_get(&got);
+    CHECK(got.threads == 3 && lu_thread_count() == 3 && got.alloc == count_alloc && got.user == &c);
+    /* a settings list grows through realloc and frees through free */
+    lu_kvlist kv = {0};
+    for (int i = 0; i < 40; i++) {
+        char text[64];
+        snprintf(text, sizeof text, "m.k%d=%d", i, i);
+        CHECK_OK(lu_kv_parse_assignment(&kv, text, &err), &err);
+    }
+    lu_kv_free(&kv);
+    CHECK_MSG(c.allocs + c.reallocs >= 2 && c.frees >= 1, "allocs %ld reallocs %ld frees %ld", c.allocs, c.reallocs,
+              c.frees);
+    long before = c.allocs;
+    lu_image im = {0};
+    CHECK_OK(lu_image_create(&im, 4, 4, &err), &err);
+    CHECK(c.allocs == before + 1);
+    /* the allocator cannot change while its memory is alive */
+    lu_host other = {.log = count_log, .user = &c};
+    CHECK(lu_host_set(&other, &err) == LU_ERR_INVALID_ARG && strstr(err.message, "alive"));
+    lu_image_destroy(&im);
+    CHECK(c.allocs == c.frees);
+    lu_log_msg(LU_LOG_WARNING, "careful: %d\n", 7);
+    CHECK_MSG(strcmp(c.last_log, "1:careful: 7\n") == 0, "%s", c.last_log);
+    int logs = c.logs;
+    lu_log_msg(LU_LOG_DEBUG, "hidden\n");
+    CHECK(c.logs == logs);   /* debug only with host.debug */
+    CHECK_OK(lu_host_set(NULL, &err), &err);
+    CHECK(lu_thread_count() >= 1);
 }
 
 int main(void) {
     RUN_TEST(test_cache_dir);
+    RUN_TEST(test_host);
     RUN_TEST(test_kv_parse);
     RUN_TEST(test_affine);
     RUN_TEST(test_aabb_ray);

@@ -10,6 +10,7 @@
  * settings so the test takes seconds. A scene the method cannot render on
  * the CPU (an LU_ERR_UNSUPPORTED answer) is reported and skipped; every other
  * error fails. No GPU context fails the test (CI has llvmpipe). */
+#include "backends/gpu.h"
 #include "lu_test.h"
 
 #include <lucent/lucent.h>
@@ -206,6 +207,11 @@ static void test_long_loops(void) {
 }
 
 int main(void) {
+    if (!lu_gpu_compiled_in()) {
+        SKIP_TEST(test_every_scene_every_gpu_method, "built without the GPU backend");
+        SKIP_TEST(test_long_loops, "built without the GPU backend");
+        TEST_EXIT_SKIPPED("built without the GPU backend");
+    }
     RUN_TEST(test_every_scene_every_gpu_method);
     RUN_TEST(test_long_loops);
     TEST_EXIT();

@@ -462,7 +462,7 @@ static void test_cache(void) {
     /* the renderer reports it and fails (no silent recompute over a corrupt file) */
     char dir[256];
     snprintf(dir, sizeof dir, "%s/test_ddod_cache_dir_%d", LU_BINARY_DIR, (int)getpid());
-    setenv("LUCENT_CACHE_DIR", dir, 1);
+    lu_set_cache_dir(dir, NULL);
     lu_kvlist set = {0};
     CHECK_OK(lu_kv_parse_assignment(&set, "ddod.res=24", &err), &err);
     CHECK_OK(lu_kv_parse_assignment(&set, "ddod.dirs=32", &err), &err);
@@ -483,7 +483,7 @@ static void test_cache(void) {
     CHECK_MSG(strstr(err.message, "delete the file"), "%s", err.message);
     snprintf(cmd, sizeof cmd, "rm -rf %s %s", dir, path);
     CHECK(system(cmd) == 0);
-    unsetenv("LUCENT_CACHE_DIR");
+    lu_set_cache_dir(NULL, NULL);
     lu_kv_free(&set);
     lu_ddod_set_free(&a);
     lu_scene_destroy(&s);
@@ -540,7 +540,7 @@ static void test_images(void) {
     const char *const *sets[2] = {traced, paper};
     char dir[256];
     snprintf(dir, sizeof dir, "%s/test_ddod_images_%d", LU_BINARY_DIR, (int)getpid());
-    setenv("LUCENT_CACHE_DIR", dir, 1);
+    lu_set_cache_dir(dir, NULL);
     for (int k = 0; k < 2; k++) {
         lu_scene s;
         lu_error err;
@@ -566,7 +566,7 @@ static void test_images(void) {
         lu_image_destroy(&ref);
         lu_scene_destroy(&s);
     }
-    unsetenv("LUCENT_CACHE_DIR");
+    lu_set_cache_dir(NULL, NULL);
     lu_test_remove_dir(dir);
 }
 
@@ -576,18 +576,15 @@ static void test_images(void) {
  * layered cube: sweeps for the sample attenuation too) and a constant one. */
 static void test_thread_invariance(void) {
     const char *scenes[2] = {k_sphere, k_layered};
-    const char *old = getenv("LUCENT_THREADS");
-    char saved[32] = "";
-    if (old) snprintf(saved, sizeof saved, "%s", old);
     for (int k = 0; k < 2; k++) {
         lu_scene s;
         lu_error err;
         CHECK_OK(lu_scene_load_string(scenes[k], "scene.json", &s, &err), &err);
         lu_ddod_params p = {32, 48, 1500, 4, 0.8f, 3, 4};
         lu_ddod_set a, b;
-        setenv("LUCENT_THREADS", "1", 1);
+        lu_set_thread_count(1, NULL);
         CHECK_OK(lu_ddod_compute(&s, &p, &a, &err), &err);
-        setenv("LUCENT_THREADS", "3", 1);
+        lu_set_thread_count(3, NULL);
         CHECK_OK(lu_ddod_compute(&s, &p, &b, &err), &err);
         CHECK(a.count > 0 && a.count == b.count && a.stride == b.stride);
         if (a.count > 0 && a.count == b.count && a.stride == b.stride) {
@@ -598,8 +595,7 @@ static void test_thread_invariance(void) {
         lu_ddod_set_free(&b);
         lu_scene_destroy(&s);
     }
-    if (old) setenv("LUCENT_THREADS", saved, 1);
-    else unsetenv("LUCENT_THREADS");
+    lu_set_thread_count(0, NULL);
 }
 
 int main(void) {

@@ -318,7 +318,7 @@ int main(void) {
     /* ddod's precomputation cache: a folder of this run's own */
     char cache[] = "/tmp/lucent-test-frame-XXXXXX";
     CHECK(mkdtemp(cache) != NULL);
-    setenv("LUCENT_CACHE_DIR", cache, 1);
+    lu_set_cache_dir(cache, NULL);
     RUN_TEST(test_view_march_methods_cpu);
     RUN_TEST(test_view_march_methods_gpu);
     RUN_TEST(test_translucent_methods_cpu);

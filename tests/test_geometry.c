@@ -985,10 +985,10 @@ static void test_concurrent_queries(void) {
     conc_ctx single = {a, o, d, h1, f1, c1};
     conc_range(&single, 0, N, 0);
     /* Four workers even on a two-core machine, small chunks to interleave. */
-    setenv("LUCENT_THREADS", "4", 1);
+    lu_set_thread_count(4, NULL);
     conc_ctx multi = {a, o, d, h2, f2, c2};
     lu_parallel_for(N, 64, conc_range, &multi, NULL);
-    unsetenv("LUCENT_THREADS");
+    lu_set_thread_count(0, NULL);
     int diff = 0, found = 0, deep = 0;
     for (int i = 0; i < N; i++) {
         found += f1[i];

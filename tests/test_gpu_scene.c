@@ -5,6 +5,7 @@
  * on random rays. The CPU side evaluates the same quantities with
  * lu_grid_sample and the same kernel compiled as C. Fails (does not skip)
  * when no GL context can be made. */
+#include "backends/gpu.h"
 #include "lu_test.h"
 
 #include <lucent/lucent.h>
@@ -170,6 +171,11 @@ int main(void) {
     CHECK(g_scene.medium_count == 2);
     if (g_scene.medium_count == 2) {
         RUN_TEST(test_records);
+        if (!lu_gpu_compiled_in()) {
+            SKIP_TEST(test_gpu_matches_cpu, "built without the GPU backend");
+            lu_scene_destroy(&g_scene);
+            TEST_EXIT_SKIPPED("built without the GPU backend");
+        }
         RUN_TEST(test_gpu_matches_cpu);
     }
     lu_scene_destroy(&g_scene);

@@ -996,14 +996,11 @@ static void test_proc_cloud_plume(void) {
 static void test_proc_determinism(void) {
     const char *names[] = {"fbm_cloud", "gaussians", "dusty_room", "smoke_plume"};
     lu_error err = {0};
-    const char *env = getenv("LUCENT_THREADS");
-    char saved[32] = "";
-    if (env) snprintf(saved, sizeof saved, "%s", env);
     for (int i = 0; i < 4; i++) {
         lu_grid a, b, c;
-        setenv("LUCENT_THREADS", "1", 1);
+        lu_set_thread_count(1, NULL);
         CHECK_OK(gen(names[i], &a, &err, "seed=3 resolution=32"), &err);
-        setenv("LUCENT_THREADS", "3", 1);
+        lu_set_thread_count(3, NULL);
         CHECK_OK(gen(names[i], &b, &err, "seed=3 resolution=32"), &err);
         CHECK_OK(gen(names[i], &c, &err, "seed=4 resolution=32"), &err);
         CHECK_MSG(same_grid_values(&a, &b), "%s not deterministic", names[i]);
@@ -1012,8 +1009,7 @@ static void test_proc_determinism(void) {
         lu_grid_destroy(&b);
         lu_grid_destroy(&c);
     }
-    if (saved[0]) setenv("LUCENT_THREADS", saved, 1);
-    else unsetenv("LUCENT_THREADS");
+    lu_set_thread_count(0, NULL);
 }
 
 static void test_proc_errors(void) {

@@ -84,6 +84,10 @@ static void test_all_kernels_compile_as_glsl(void) {
 }
 
 int main(void) {
+    if (!lu_gpu_compiled_in()) {
+        SKIP_TEST(test_all_kernels_compile_as_glsl, "built without the GPU backend");
+        TEST_EXIT_SKIPPED("built without the GPU backend");
+    }
     RUN_TEST(test_all_kernels_compile_as_glsl);
     TEST_EXIT();
 }

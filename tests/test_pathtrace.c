@@ -788,20 +788,14 @@ static void on_pass(void *user, const lu_image *partial, int done, int total) {
 
 static void test_determinism_and_progressive(void) {
     lu_image a = {0}, b = {0}, c = {0};
-    const char *old = getenv("LUCENT_THREADS");
-    char saved[32] = "";
-    if (old) snprintf(saved, sizeof saved, "%s", old);
     lu_scene s;
     if (!load_bundled("smoke_box", 16, 12, &s)) return;
-    setenv("LUCENT_THREADS", "1", 1);
+    lu_set_thread_count(1, NULL);
     render_scene(&s, "pathtrace", "pathtrace.spp=7", &a);
-    setenv("LUCENT_THREADS", "3", 1);
+    lu_set_thread_count(3, NULL);
     render_scene(&s, "pathtrace", "pathtrace.spp=7", &b);
     render_scene(&s, "pathtrace", "pathtrace.spp=7 pathtrace.seed=2", &c);
-    if (old)
-        setenv("LUCENT_THREADS", saved, 1);
-    else
-        unsetenv("LUCENT_THREADS");
+    lu_set_thread_count(0, NULL);
     size_t bytes = sizeof(float) * 3 * 16 * 12;
     CHECK(a.rgb && b.rgb && memcmp(a.rgb, b.rgb, bytes) == 0);
     CHECK(c.rgb && memcmp(a.rgb, c.rgb, bytes) != 0);

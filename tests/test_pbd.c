@@ -313,6 +313,7 @@ static double image_mean(const lu_image *im) {
 }
 
 static void test_gpu_equals_cpu(void) {
+    if (lu_test_skip_gpu(LU_BACKEND_GPU)) return;
     /* The bundled marble bunny: GPU = CPU within the cross-backend bound
      * (rel-L2 1e-3, docs/architecture.md section 5), on an image that is not
      * black, and that differs from the dipole's (so the pbd table is what

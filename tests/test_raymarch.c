@@ -39,6 +39,7 @@ static bool load(const char *name, lu_scene *s) {
 }
 
 static bool render(const lu_scene *s, const char *method, lu_backend b, int steps, int shadow_res, lu_image *img) {
+    if (lu_test_skip_gpu(b)) return false;
     lu_kvlist set = {0};
     lu_error err = {0};
     if (steps > 0) {

@@ -15,7 +15,22 @@
 extern "C" {
 #endif
 
-#define LU_VERSION_STRING "0.1.0"
+/* ---- version -------------------------------------------------------------
+ * MAJOR changes when a program built against an older header may no longer
+ * build or run (docs/architecture.md §10 says what is stable); MINOR when
+ * something is added; PATCH for fixes only. CMake reads the project version
+ * from these three lines, so the header is the one place it is written. */
+#define LU_VERSION_MAJOR 0
+#define LU_VERSION_MINOR 2
+#define LU_VERSION_PATCH 0
+#define LU_VERSION_STRING "0.2.0"
+/* One number that orders versions: (MAJOR << 16) | (MINOR << 8) | PATCH. */
+#define LU_VERSION ((LU_VERSION_MAJOR << 16) | (LU_VERSION_MINOR << 8) | LU_VERSION_PATCH)
+
+/* The library's own version (the header's LU_VERSION when both match); a
+ * program linked against a shared library can compare the two majors. */
+uint32_t lu_version(void);
+const char *lu_version_string(void);
 
 /* ---- results ---------------------------------------------------------- */
 
@@ -95,16 +110,83 @@ lu_result lu_kv_vec3(const lu_kvlist *list, const char *key, const double def[3]
 lu_result lu_kv_check_known(const lu_kvlist *list, const char *const *known, const char *where,
                             lu_error *err);
 
+/* ---- the host: memory, log, threads, cache folder ---------------------------
+ * What a program embedding lucent decides for the whole process, set once
+ * with lu_host_set before any other lu_ call (a zero-initialised lu_host is
+ * the default everywhere). The library reads no environment variable: the
+ * CLI reads LUCENT_THREADS, LUCENT_CACHE_DIR (else XDG), LUCENT_QUIET,
+ * LUCENT_GPU, LUCENT_GPU_DEVICE and LUCENT_DEBUG and passes them in here.
+ *
+ * Memory: every allocation of the library itself goes through alloc /
+ * realloc / free (all three or none; NULL: the C library's). Memory an lu_
+ * call hands to the caller to release (lu_read_file's buffer) is released
+ * with lu_free. The libraries lucent uses (Embree, FFTW, libpng, zlib,
+ * OpenEXR, cJSON, the GL driver) allocate through their own allocators. */
+
+typedef enum lu_log_level {
+    LU_LOG_ERROR = 0,
+    LU_LOG_WARNING,
+    LU_LOG_INFO,
+    LU_LOG_PROGRESS,   /* progress bars: "\r"-terminated while running on a terminal */
+    LU_LOG_DEBUG       /* only with lu_host.debug */
+} lu_log_level;
+
+/* message is complete text (ends with "\n", or "\r" for a progress bar). */
+typedef void (*lu_log_fn)(lu_log_level level, const char *message, void *user);
+
+/* Which GPU device AUTO contexts take. */
+typedef enum lu_gpu_choice {
+    LU_GPU_CHOICE_AUTO = 0,     /* a hardware EGL device, else Mesa's software one */
+    LU_GPU_CHOICE_HARDWARE,     /* hardware devices only */
+    LU_GPU_CHOICE_SOFTWARE      /* software (llvmpipe) only */
+} lu_gpu_choice;
+
+typedef struct lu_host {
+    void *(*alloc)(size_t size, void *user);
+    void *(*realloc)(void *ptr, size_t size, void *user);
+    void (*free)(void *ptr, void *user);
+    lu_log_fn log;              /* NULL: stderr */
+    int threads;                /* 0: the online processors (capped at LU_MAX_THREADS) */
+    const char *cache_dir;      /* NULL: no on-disk cache (copied) */
+    bool quiet;                 /* only errors and warnings reach the log: no progress, no reports */
+    bool debug;                 /* diagnostics (LU_LOG_DEBUG): sampling passes, coverage */
+    lu_gpu_choice gpu;
+    bool gpu_device_only;       /* use only EGL device gpu_device (as `lucent info --gpu` lists them) */
+    int gpu_device;
+    void *user;                 /* passed to alloc, realloc, free and log */
+} lu_host;
+
+/* Validates and installs host (NULL: the defaults). The allocator may change
+ * only while no memory from the previous one is alive: call it first. */
+lu_result lu_host_set(const lu_host *host, lu_error *err);
+/* The host in effect, defaults resolved (threads as lu_thread_count says;
+ * cache_dir points to the library's copy). */
+void lu_host_get(lu_host *out);
+
+void *lu_malloc(size_t size);
+void *lu_calloc(size_t count, size_t size);   /* zeroed; NULL on overflow */
+void *lu_realloc(void *ptr, size_t size);
+void lu_free(void *ptr);
+char *lu_strdup(const char *s);
+
+/* Formats one message and hands it to the host's log (stderr by default);
+ * LU_LOG_DEBUG only with lu_host.debug; LU_LOG_INFO and LU_LOG_PROGRESS not
+ * with lu_host.quiet. (Not lu_log: that is the kernels' logarithm.) */
+void lu_log_msg(lu_log_level level, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+bool lu_log_enabled(lu_log_level level);
+
 /* ---- threads -----------------------------------------------------------
  * One persistent worker pool per process, started by the first
  * lu_parallel_for that can use a helper and grown (never shrunk) to the
  * largest thread count asked for since. Idle workers sleep; they do not spin.
  *
- * Thread count: the value given to lu_set_thread_count, else LUCENT_THREADS
- * (a decimal integer in [1, LU_MAX_THREADS]; any other value is ignored),
- * else the number of online processors capped at LU_MAX_THREADS. The
- * LUCENT_THREADS fallback is transitional: hosts should call
- * lu_set_thread_count (the CLI does, after validating the variable).
+ * Thread count: the value given to lu_set_thread_count (or lu_host.threads),
+ * else the number of online processors capped at LU_MAX_THREADS. The library
+ * reads no environment variable: the CLI reads LUCENT_THREADS and passes it.
  *
  * Work is handed out in chunks from an atomic counter, so results never
  * depend on scheduling (each index is computed by exactly one call, with no
@@ -147,7 +229,8 @@ void lu_parallel_for(int64_t n, int64_t grain, lu_range_fn fn, void *ctx, const 
 
 /* ---- progress ------------------------------------------------------------
  * Silent for the first second; then a bar with percent and ETA on a TTY, or
- * a line per 25 % otherwise. LUCENT_QUIET=1 silences it. */
+ * a line per 25 % otherwise, through the log (LU_LOG_PROGRESS); lu_host.quiet
+ * silences it (the CLI sets that from LUCENT_QUIET). */
 
 typedef struct lu_progress {
     const char *label;
@@ -188,7 +271,8 @@ void lu_atomic_abort(lu_atomic_file *f);
 /* Opens a regular file for binary reading and reports its size; errors name
  * the path (LU_ERR_IO for a missing file or a directory). */
 lu_result lu_open_regular(const char *path, void **fp, uint64_t *size, lu_error *err);
-/* Reads a whole file (up to max_bytes) into a NUL-terminated buffer. */
+/* Reads a whole file (up to max_bytes) into a NUL-terminated buffer, which
+ * the caller releases with lu_free. */
 lu_result lu_read_file(const char *path, size_t max_bytes, char **data, size_t *size, lu_error *err);
 /* Lower-case extension after the last '.', "" if none; ".ply.gz" -> "gz". */
 const char *lu_path_ext(const char *path);
@@ -197,13 +281,22 @@ bool lu_path_has_suffix(const char *path, const char *suffix); /* case-insensiti
 void lu_path_resolve(const char *base_file, const char *rel, char *out, size_t out_size);
 
 /* ---- the cache folder ----------------------------------------------------
- * Every on-disk cache lives in one folder: the one set here (NULL: back to
- * the default), else $LUCENT_CACHE_DIR, else $XDG_CACHE_HOME/lucent, else
- * $HOME/.cache/lucent. */
+ * Every on-disk cache lives in one folder: the one set here or in
+ * lu_host.cache_dir. With none set the library keeps no cache on disk (ddod
+ * computes its precomputation every time). NULL unsets it. */
 lu_result lu_set_cache_dir(const char *dir, lu_error *err);
+/* The folder set, or LU_ERR_UNSUPPORTED "no cache folder" when none is. */
 lu_result lu_cache_dir(char *out, size_t cap, lu_error *err);
+bool lu_cache_enabled(void);
 /* <cache folder>/name, creating the folder first when create_dir. */
 lu_result lu_cache_path(const char *name, bool create_dir, char *out, size_t cap, lu_error *err);
+/* The conventional folder, from values a host read from its environment (any
+ * may be NULL): lucent_cache_dir when set, else xdg_cache_home/lucent when it
+ * is absolute (XDG ignores relative values), else home/.cache/lucent. The CLI
+ * passes $LUCENT_CACHE_DIR, $XDG_CACHE_HOME and $HOME. LU_ERR_IO when all are
+ * unset. */
+lu_result lu_cache_dir_conventional(const char *lucent_cache_dir, const char *xdg_cache_home, const char *home,
+                                    char *out, size_t cap, lu_error *err);
 
 #ifdef __cplusplus
 }

@@ -6,8 +6,11 @@
  * given), and destroy. All methods render the same lu_scene.
  *
  *   lu_renderer *r;
- *   lu_renderer_create("reference", &scene, &settings, LU_BACKEND_CPU, &r, &err);
+ *   lu_renderer_desc desc = {.method = "reference", .set = (const char *[]){"reference.spp=4", NULL}};
+ *   lu_renderer_make(&desc, &scene, &r, &err);
  *   lu_renderer_render(r, &scene, &image, &err);
+ *   lu_renderer_stats st;
+ *   lu_renderer_get_stats(r, &st, &err);
  *   lu_renderer_destroy(r);
  *
  * Settings are "method.param" keys (e.g. "reference.spp" = 4). Keys naming
@@ -33,7 +36,7 @@ typedef enum lu_backend { LU_BACKEND_AUTO = 0, LU_BACKEND_CPU = 1, LU_BACKEND_GP
 const char *lu_backend_name(lu_backend b);   /* "auto", "cpu", "gpu" */
 /* What AUTO means on this machine, LU_BACKEND_GPU or LU_BACKEND_CPU, decided
  * once per process: the first call looks for a hardware EGL device (under
- * LUCENT_GPU and LUCENT_GPU_DEVICE) and confirms it with an OpenGL 4.5 context
+ * lu_host.gpu and gpu_device) and confirms it with an OpenGL 4.5 context
  * that it destroys again. why, when not NULL, receives a text that lives as
  * long as the process: the device found, or why there is none. Thread-safe. */
 lu_backend lu_backend_auto(const char **why);
@@ -121,18 +124,53 @@ lu_result lu_method_resolve_params(const lu_method *m, const lu_kvlist *settings
 /* Validates every key of settings against the registry (method exists, param exists). */
 lu_result lu_settings_validate(const lu_kvlist *settings, lu_error *err);
 
-typedef struct lu_renderer {
-    const lu_method *method;
-    lu_backend backend;      /* resolved: CPU or GPU, never AUTO */
-    double params[LU_MAX_PARAMS];
-    void *state;
-    double prepare_ms;       /* wall time of the prepare step */
-    double last_render_ms;   /* wall time of the latest render */
-    lu_progressive progressive;  /* see lu_renderer_set_progressive */
-    struct lu_frame_stage *stage;   /* what the previous frame rendered (internal) */
-    int frames;                     /* frames rendered since create or the last failed frame */
-} lu_renderer;
+/* ---- the renderer ---------------------------------------------------------
+ * An opaque handle: one method prepared for one scene, rendering frames of it
+ * (docs/architecture.md §4). Its layout is the library's own, so it can grow
+ * without breaking a program built against an older header. */
+typedef struct lu_renderer lu_renderer;
 
+/* What lu_renderer_make builds; zero-initialised is the default of every
+ * field (lu_renderer_desc_resolve fills them in). */
+typedef struct lu_renderer_desc {
+    const char *method;            /* NULL: LU_DEFAULT_METHOD */
+    lu_backend backend;            /* LU_BACKEND_AUTO: a hardware GPU, else the CPU */
+    const lu_kvlist *settings;     /* NULL: none; "method.param" keys (core.h) */
+    const char *const *set;        /* NULL, or "method.param=value" texts ending with NULL, after settings */
+    lu_progressive progressive;    /* zero: off (lu_renderer_set_progressive) */
+} lu_renderer_desc;
+
+#define LU_DEFAULT_METHOD "reference"
+
+/* The descriptor with its defaults filled in: the method's name, and the
+ * backend a renderer of it would run on (CPU or GPU, never AUTO). Fails like
+ * lu_renderer_make for an unknown method or a backend the method lacks. */
+lu_result lu_renderer_desc_resolve(const lu_renderer_desc *desc, lu_renderer_desc *out, lu_error *err);
+
+/* Resolves desc, validates the settings, prepares the method for scene. */
+lu_result lu_renderer_make(const lu_renderer_desc *desc, const lu_scene *scene, lu_renderer **out, lu_error *err);
+
+/* What a renderer did, read at any time between calls. Times are wall
+ * milliseconds of the latest call of each stage. */
+typedef struct lu_renderer_stats {
+    const char *method;            /* the method's name */
+    lu_backend backend;            /* resolved: CPU or GPU */
+    double prepare_ms;             /* the latest prepare: at make, or again for new geometry */
+    double frame_update_ms;        /* the frame stage: comparing the latest frame with the one before, recording it */
+    double render_ms;              /* the latest frame's method render */
+    double frame_ms;               /* the latest lu_renderer_render in total: update, any prepare, render */
+    uint64_t frames;               /* frames rendered since make */
+    uint64_t prepares;             /* prepares since make, the first included */
+    unsigned changed;              /* lu_change bits the latest frame saw */
+    int products;                  /* cached products; names and rebuild counts: lu_renderer_products */
+} lu_renderer_stats;
+
+lu_result lu_renderer_get_stats(const lu_renderer *r, lu_renderer_stats *out, lu_error *err);
+/* The method table and the resolved parameter values (descriptor order). */
+lu_result lu_renderer_get_method(const lu_renderer *r, const lu_method **method, lu_error *err);
+lu_result lu_renderer_get_params(const lu_renderer *r, double *values, int cap, int *count, lu_error *err);
+
+/* The short form of lu_renderer_make: method, settings and backend only. */
 lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu_kvlist *settings,
                              lu_backend backend, lu_renderer **out, lu_error *err);
 /* Creates `out` at the camera size if it is empty (width 0), else requires that size. */

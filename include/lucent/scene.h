@@ -144,6 +144,60 @@ void lu_scene_destroy(lu_scene *scene);
  * media included (LU_ERR_UNSUPPORTED: there is no grid to edit). */
 lu_result lu_scene_medium_grid(lu_scene *scene, int medium, lu_grid **grid, lu_error *err);
 
+/* ---- building a scene in code ---------------------------------------------
+ * The JSON loader is one user of the builder: every scene, loaded or built,
+ * is assembled and checked by the same calls. A builder owns what is added
+ * (meshes, grids and environment maps are moved in: the caller's struct is
+ * left empty), and lu_scene_builder_finish hands it all to the scene.
+ *
+ *   lu_scene_builder *b;
+ *   lu_scene_builder_create(&b, &err);
+ *   lu_scene_builder_set_camera(b, &(lu_camera){.position = {0, 1, 5}, .look_at = {0, 1, 0}}, &err);
+ *   lu_scene_builder_add_light(b, &(lu_light){.type = LU_LIGHT_POINT, .position = {0, 4, 0},
+ *                                             .intensity = {50, 50, 50}}, &err);
+ *   lu_scene_builder_add_medium(b, &(lu_medium_desc){.grid = &grid, .sigma_s = {4, 4, 4}}, &err);
+ *   lu_scene_builder_finish(b, &scene, &err);
+ *
+ * Errors name what is wrong ("position and look_at coincide"); a failed call
+ * adds nothing (and frees what it was to take). */
+typedef struct lu_scene_builder lu_scene_builder;
+
+/* A medium to add. Zero is the default of every field. */
+typedef struct lu_medium_desc {
+    lu_density_kind kind;          /* LU_DENSITY_GRID (0): *grid; LU_DENSITY_CONSTANT: constant inside boundary */
+    lu_grid *grid;                 /* GRID: moved into the scene */
+    float constant;                /* CONSTANT: the density */
+    lu_vec3 sigma_s, sigma_a;      /* per scene unit at density 1 */
+    float phase_g;                 /* Henyey-Greenstein g in (-1, 1); 0: isotropic */
+    const lu_affine *transform;    /* NULL: identity; after the grid's own map, and for the boundary */
+    lu_mesh *boundary;             /* NULL: none (grids only); else moved in, transformed by transform */
+    float eta;                     /* boundary index of refraction in [1, 4]; 0: 1.5 */
+    const lu_material *surface;    /* boundary reflection (diffuse type); NULL: a clear glossy coat */
+} lu_medium_desc;
+
+/* The default material: diffuse, albedo 0.8, no specular, shininess 32. */
+void lu_material_defaults(lu_material *out);
+
+lu_result lu_scene_builder_create(lu_scene_builder **out, lu_error *err);
+/* Frees the builder and everything added to it (a builder not finished). */
+void lu_scene_builder_destroy(lu_scene_builder *b);
+/* Camera: position and look_at distinct, up not along the view, size in
+ * [1, LU_MAX_IMAGE_DIM] (0: 512), fov_y_deg in [0.01, 179] (0: 45); up zero: +y. */
+lu_result lu_scene_builder_set_camera(lu_scene_builder *b, const lu_camera *camera, lu_error *err);
+void lu_scene_builder_set_background(lu_scene_builder *b, lu_vec3 radiance);
+/* Spot and directional directions are normalised (zero is an error); a
+ * spot needs inner_deg <= outer_deg; an environment light's map is moved in. */
+lu_result lu_scene_builder_add_light(lu_scene_builder *b, lu_light *light, lu_error *err);
+lu_result lu_scene_builder_add_medium(lu_scene_builder *b, const lu_medium_desc *desc, lu_error *err);
+/* mesh is moved in and transformed to world space (transform NULL:
+ * identity); material NULL: lu_material_defaults. A translucent object is
+ * also listed as a medium at finish (see the top of this file). */
+lu_result lu_scene_builder_add_object(lu_scene_builder *b, lu_mesh *mesh, const lu_affine *transform,
+                                      const lu_material *material, lu_error *err);
+/* Hands everything to *out and frees the builder, whether or not it
+ * succeeds (a camera is required). */
+lu_result lu_scene_builder_finish(lu_scene_builder *b, lu_scene *out, lu_error *err);
+
 /* World box around all media (empty box if none). */
 lu_aabb lu_scene_media_bounds(const lu_scene *scene);
 /* World box around everything with geometry: media and objects. */

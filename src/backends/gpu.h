@@ -115,10 +115,10 @@ void lu_gpu_context_destroy(lu_gpu_context *ctx);
  * current again. */
 void lu_gpu_serial_enter(void);
 void lu_gpu_serial_leave(void);
-/* True when a hardware GPU can serve the GPU backend under LUCENT_GPU and
- * LUCENT_GPU_DEVICE: a non-software EGL device that gives an OpenGL 4.5 core
- * context. The context is made and destroyed again, and the caller's current
- * EGL context is restored. Where EGL enumerates its devices and none is
+/* True when a hardware GPU can serve the GPU backend under lu_host.gpu and
+ * gpu_device (the CLI's LUCENT_GPU, LUCENT_GPU_DEVICE): a non-software EGL
+ * device that gives an OpenGL 4.5 core context. The context is made and
+ * destroyed again, and the caller's current EGL context is restored. Where EGL enumerates its devices and none is
  * hardware, no driver is loaded. why receives the device found, or why there
  * is none (LUCENT_GPU=software counts as none). */
 bool lu_gpu_hardware_probe(char *why, size_t why_size);

@@ -69,7 +69,7 @@ lu_result lu_read_file(const char *path, size_t max_bytes, char **data, size_t *
                        (unsigned long long)file_size, max_bytes);
     }
     size_t n = (size_t)file_size;
-    char *buf = malloc(n + 1);
+    char *buf = lu_malloc(n + 1);
     if (!buf) {
         fclose(fp);
         return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory reading %zu bytes", path, n);
@@ -77,7 +77,7 @@ lu_result lu_read_file(const char *path, size_t max_bytes, char **data, size_t *
     size_t got = fread(buf, 1, n, fp);
     fclose(fp);
     if (got != n) {
-        free(buf);
+        lu_free(buf);
         return lu_fail(err, LU_ERR_IO, "%s: short read (%zu of %zu bytes)", path, got, n);
     }
     buf[n] = '\0';

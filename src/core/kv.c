@@ -9,7 +9,7 @@
 #include <string.h>
 
 void lu_kv_free(lu_kvlist *list) {
-    free(list->items);
+    lu_free(list->items);
     list->items = NULL;
     list->count = list->capacity = 0;
 }
@@ -24,7 +24,7 @@ static lu_kv *kv_slot(lu_kvlist *list, const char *key, lu_error *err) {
         if (strcmp(list->items[i].key, key) == 0) return &list->items[i];
     if (list->count == list->capacity) {
         int cap = list->capacity ? list->capacity * 2 : 8;
-        lu_kv *items = realloc(list->items, (size_t)cap * sizeof *items);
+        lu_kv *items = lu_realloc(list->items, (size_t)cap * sizeof *items);
         if (!items) {
             lu_fail(err, LU_ERR_NOMEM, "out of memory growing settings");
             return NULL;

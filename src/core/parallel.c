@@ -57,8 +57,6 @@ static void count_cpus(void) {
 int lu_thread_count(void) {
     int n = atomic_load(&g_thread_count);
     if (n > 0) return n;
-    const char *env = getenv("LUCENT_THREADS");
-    if (env && *env && lu_thread_count_parse(env, "LUCENT_THREADS", &n, NULL) == LU_OK) return n;
     pthread_once(&g_cpus_once, count_cpus);
     return g_cpus;
 }

@@ -1,4 +1,5 @@
-/* Progress on stderr for long work: silent under a second, then a bar. */
+/* Progress for long work, through the log (stderr by default): silent under
+ * a second, then a bar. */
 #include <lucent/core.h>
 
 #include <stdatomic.h>
@@ -37,10 +38,6 @@ bool lu_peak_rss_reset(void) {
     return fclose(f) == 0 && ok;
 }
 
-static bool quiet(void) {
-    const char *q = getenv("LUCENT_QUIET");
-    return q && *q && *q != '0';
-}
 
 void lu_progress_begin(lu_progress *p, const char *label, int64_t total) {
     p->label = label;
@@ -52,7 +49,7 @@ void lu_progress_begin(lu_progress *p, const char *label, int64_t total) {
 }
 
 void lu_progress_update(lu_progress *p, int64_t done) {
-    if (quiet()) return;
+    if (!lu_log_enabled(LU_LOG_PROGRESS)) return;
     double now = lu_time_seconds();
     double elapsed = now - p->start_s;
     if (elapsed < 1.0) return;
@@ -65,21 +62,21 @@ void lu_progress_update(lu_progress *p, int64_t done) {
         int filled = (int)(frac * 30.0);
         for (int i = 0; i < 30; i++) bar[i] = i < filled ? '#' : '.';
         bar[30] = '\0';
-        fprintf(stderr, "\r%s [%s] %5.1f%%  %6.1fs elapsed  ETA %6.1fs ", p->label, bar, 100.0 * frac, elapsed, eta);
+        lu_log_msg(LU_LOG_PROGRESS, "\r%s [%s] %5.1f%%  %6.1fs elapsed  ETA %6.1fs ", p->label, bar, 100.0 * frac, elapsed, eta);
         p->last_print_s = now;
         p->printed = true;
     } else {
         int quarter = (int)(frac * 4.0);
         if (quarter > p->last_quarter) {
             p->last_quarter = quarter;
-            fprintf(stderr, "%s: %3.0f%% after %.1fs, ETA %.1fs\n", p->label, 100.0 * frac, elapsed, eta);
+            lu_log_msg(LU_LOG_PROGRESS, "%s: %3.0f%% after %.1fs, ETA %.1fs\n", p->label, 100.0 * frac, elapsed, eta);
         }
     }
 }
 
 void lu_progress_end(lu_progress *p) {
     if (p->printed) {
-        fprintf(stderr, "\r%s done in %.1fs%40s\n", p->label, lu_time_seconds() - p->start_s, "");
+        lu_log_msg(LU_LOG_PROGRESS, "\r%s done in %.1fs%40s\n", p->label, lu_time_seconds() - p->start_s, "");
         p->printed = false;
     }
 }

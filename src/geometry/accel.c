@@ -86,7 +86,7 @@ static lu_result embree_check(lu_accel *a, const char *what, lu_error *err) {
 lu_result lu_accel_create(lu_accel **out, lu_error *err) {
     if (!out) return lu_fail(err, LU_ERR_INVALID_ARG, "lu_accel_create: out is NULL");
     *out = NULL;
-    lu_accel *a = calloc(1, sizeof *a);
+    lu_accel *a = lu_calloc(1, sizeof *a);
     if (!a) return lu_fail(err, LU_ERR_NOMEM, "lu_accel_create: out of memory");
     atomic_init(&a->has_error, 0);
     a->bounds = lu_aabb_empty();
@@ -148,19 +148,19 @@ lu_result lu_accel_add_mesh(lu_accel *a, const lu_mesh *mesh, uint32_t *mesh_id,
 
     if (a->count == a->capacity) {
         uint32_t cap = a->capacity ? 2 * a->capacity : 4;
-        accel_mesh *m = realloc(a->meshes, cap * sizeof *m);
+        accel_mesh *m = lu_realloc(a->meshes, cap * sizeof *m);
         if (!m) return lu_fail(err, LU_ERR_NOMEM, "accel: out of memory for the mesh table");
         a->meshes = m;
         a->capacity = cap;
     }
-    float *verts = malloc((3 * (size_t)nv + 1) * sizeof(float));
+    float *verts = lu_malloc((3 * (size_t)nv + 1) * sizeof(float));
     if (!verts) return lu_fail(err, LU_ERR_NOMEM, "accel mesh %u: out of memory copying %u vertices", id, nv);
     if (nv) memcpy(verts, mesh->positions, 3 * (size_t)nv * sizeof(float));
     verts[3 * (size_t)nv] = 0.0f;
 
     RTCGeometry g = rtcNewGeometry(a->device, RTC_GEOMETRY_TYPE_TRIANGLE);
     if (!g) {
-        free(verts);
+        lu_free(verts);
         return embree_check(a, "geometry creation", err);
     }
     rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, verts, 0, 3 * sizeof(float), nv);
@@ -174,7 +174,7 @@ lu_result lu_accel_add_mesh(lu_accel *a, const lu_mesh *mesh, uint32_t *mesh_id,
     }
     rtcReleaseGeometry(g);   /* the scene holds its own reference */
     if (r != LU_OK) {
-        free(verts);
+        lu_free(verts);
         return r;
     }
     a->meshes[id].mesh = mesh;
@@ -202,9 +202,9 @@ void lu_accel_destroy(lu_accel *a) {
      * release in this order so the device (and its TBB arena) really goes. */
     if (a->scene) rtcReleaseScene(a->scene);
     if (a->device) rtcReleaseDevice(a->device);
-    for (uint32_t i = 0; i < a->count; i++) free(a->meshes[i].verts);
-    free(a->meshes);
-    free(a);
+    for (uint32_t i = 0; i < a->count; i++) lu_free(a->meshes[i].verts);
+    lu_free(a->meshes);
+    lu_free(a);
 }
 
 lu_aabb lu_accel_bounds(const lu_accel *a) { return a ? a->bounds : lu_aabb_empty(); }
@@ -302,10 +302,10 @@ static bool collector_grow(collector *c) {
     int cap = 2 * c->cap;
     hit_rec *r;
     if (c->recs == c->local) {
-        r = malloc((size_t)cap * sizeof *r);
+        r = lu_malloc((size_t)cap * sizeof *r);
         if (r) memcpy(r, c->local, (size_t)c->n * sizeof *r);
     } else {
-        r = realloc(c->recs, (size_t)cap * sizeof *r);
+        r = lu_realloc(c->recs, (size_t)cap * sizeof *r);
     }
     if (!r) return false;
     c->recs = r;
@@ -451,7 +451,7 @@ int lu_accel_all_hits(const lu_accel *a, lu_vec3 o, lu_vec3 d, float tmin, float
             hits[i].ng = unit_normal(r->ng[0], r->ng[1], r->ng[2]);
         }
     }
-    if (c.recs != c.local) free(c.recs);
+    if (c.recs != c.local) lu_free(c.recs);
     return n;
 }
 

@@ -7,9 +7,9 @@
 
 void lu_mesh_destroy(lu_mesh *mesh) {
     if (!mesh) return;
-    free(mesh->positions);
-    free(mesh->normals);
-    free(mesh->indices);
+    lu_free(mesh->positions);
+    lu_free(mesh->normals);
+    lu_free(mesh->indices);
     memset(mesh, 0, sizeof *mesh);
 }
 
@@ -22,9 +22,9 @@ lu_result lu_mesh_alloc(lu_mesh *mesh, uint32_t vertex_count, uint32_t triangle_
                        LU_MAX_TRIANGLES);
     /* At least one element each, so a NULL pointer always means failure. */
     size_t nv = vertex_count ? vertex_count : 1, nt = triangle_count ? triangle_count : 1;
-    mesh->positions = calloc(nv, sizeof *mesh->positions);
-    mesh->normals = calloc(nv, sizeof *mesh->normals);
-    mesh->indices = calloc(3 * nt, sizeof *mesh->indices);
+    mesh->positions = lu_calloc(nv, sizeof *mesh->positions);
+    mesh->normals = lu_calloc(nv, sizeof *mesh->normals);
+    mesh->indices = lu_calloc(3 * nt, sizeof *mesh->indices);
     if (!mesh->positions || !mesh->normals || !mesh->indices) {
         lu_mesh_destroy(mesh);
         return lu_fail(err, LU_ERR_NOMEM, "mesh: out of memory for %u vertices and %u triangles", vertex_count,
@@ -128,11 +128,11 @@ lu_result lu_mesh_append(lu_mesh *dst, const lu_mesh *src, lu_error *err) {
                        (unsigned long long)t0 + nt, LU_MAX_TRIANGLES);
     bool self = dst == src;
     size_t vbytes = ((size_t)v0 + nv + 1) * sizeof(lu_vec3);
-    lu_vec3 *p = realloc(dst->positions, vbytes);
+    lu_vec3 *p = lu_realloc(dst->positions, vbytes);
     if (p) dst->positions = p;
-    lu_vec3 *n = p ? realloc(dst->normals, vbytes) : NULL;
+    lu_vec3 *n = p ? lu_realloc(dst->normals, vbytes) : NULL;
     if (n) dst->normals = n;
-    uint32_t *ix = n ? realloc(dst->indices, ((size_t)t0 + nt + 1) * 3 * sizeof(uint32_t)) : NULL;
+    uint32_t *ix = n ? lu_realloc(dst->indices, ((size_t)t0 + nt + 1) * 3 * sizeof(uint32_t)) : NULL;
     if (ix) dst->indices = ix;
     if (!ix) return lu_fail(err, LU_ERR_NOMEM, "mesh append: out of memory");
     /* When appending a mesh to itself the source arrays moved with the realloc. */
@@ -257,7 +257,7 @@ static lu_result grow(void **ptr, size_t *cap, size_t need, size_t elem, size_t 
     size_t nc = *cap ? *cap * 2 : 4096;
     if (nc < need) nc = need;
     if (nc > max) nc = max;
-    void *q = realloc(*ptr, nc * elem);
+    void *q = lu_realloc(*ptr, nc * elem);
     if (!q) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory growing mesh arrays to %zu entries", path, nc);
     *ptr = q;
     *cap = nc;
@@ -289,9 +289,9 @@ lu_result lu_mb_reserve_triangles(lu_mesh_builder *b, size_t n, const char *path
 }
 
 void lu_mb_free(lu_mesh_builder *b) {
-    free(b->positions);
-    free(b->normals);
-    free(b->indices);
+    lu_free(b->positions);
+    lu_free(b->normals);
+    lu_free(b->indices);
     memset(b, 0, sizeof *b);
 }
 
@@ -302,17 +302,17 @@ lu_result lu_mb_finish(lu_mesh_builder *b, bool have_normals, lu_mesh *mesh, con
         return lu_fail(err, LU_ERR_FORMAT, "%s: the mesh has no triangles", path);
     }
     size_t nv = b->vcount ? b->vcount : 1;
-    lu_vec3 *p = realloc(b->positions, nv * sizeof *p);
+    lu_vec3 *p = lu_realloc(b->positions, nv * sizeof *p);
     if (p) b->positions = p;
-    uint32_t *ix = realloc(b->indices, b->tcount * 3 * sizeof *ix);
+    uint32_t *ix = lu_realloc(b->indices, b->tcount * 3 * sizeof *ix);
     if (ix) b->indices = ix;
     lu_vec3 *n;
     if (have_normals) {
-        n = realloc(b->normals, nv * sizeof *n);
+        n = lu_realloc(b->normals, nv * sizeof *n);
         if (n) b->normals = n;
     } else {
-        free(b->normals);
-        b->normals = n = malloc(nv * sizeof *n);
+        lu_free(b->normals);
+        b->normals = n = lu_malloc(nv * sizeof *n);
     }
     if (!p || !ix || !n) {
         lu_mb_free(b);

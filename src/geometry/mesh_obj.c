@@ -135,7 +135,7 @@ static bool keyword_is(const char *p, size_t len, const char *kw) {
 
 lu_result lu_mesh_load_obj(const char *path, lu_mesh *mesh, lu_error *err) {
     memset(mesh, 0, sizeof *mesh);
-    obj_state *o = calloc(1, sizeof *o);
+    obj_state *o = lu_calloc(1, sizeof *o);
     if (!o) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", path);
     lu_result r = lu_stream_open(&o->s, path, err);
     while (r == LU_OK) {
@@ -173,6 +173,6 @@ lu_result lu_mesh_load_obj(const char *path, lu_mesh *mesh, lu_error *err) {
     lu_stream_close(&o->s);
     if (r == LU_OK) r = lu_mb_finish(&o->b, false, mesh, path, err);
     lu_mb_free(&o->b);
-    free(o);
+    lu_free(o);
     return r;
 }

@@ -131,7 +131,7 @@ static lu_result header_element(ply_state *st, char **tok, int n) {
         return failf(st, LU_ERR_LIMIT, "element \"%s\" count %lld exceeds the limit of %llu", tok[1], count, limit);
     if (st->nelems == st->cap) {
         int cap = st->cap ? st->cap * 2 : 8;
-        ply_elem *el = realloc(st->elems, (size_t)cap * sizeof *el);
+        ply_elem *el = lu_realloc(st->elems, (size_t)cap * sizeof *el);
         if (!el) return lu_fail(st->err, LU_ERR_NOMEM, "%s: out of memory", st->path);
         st->elems = el;
         st->cap = cap;
@@ -170,7 +170,7 @@ static lu_result header_property(ply_state *st, char **tok, int n) {
         return failf(st, LU_ERR_LIMIT, "element \"%s\" has more than %d properties", el->name, PLY_MAX_PROPERTIES);
     if (el->nprops == el->cap) {
         int cap = el->cap ? el->cap * 2 : 8;
-        ply_prop *props = realloc(el->props, (size_t)cap * sizeof *props);
+        ply_prop *props = lu_realloc(el->props, (size_t)cap * sizeof *props);
         if (!props) return lu_fail(st->err, LU_ERR_NOMEM, "%s: out of memory", st->path);
         el->props = props;
         el->cap = cap;
@@ -480,7 +480,7 @@ static lu_result skip_element(ply_state *st, const ply_elem *el) {
 
 lu_result lu_mesh_load_ply(const char *path, lu_mesh *mesh, lu_error *err) {
     memset(mesh, 0, sizeof *mesh);
-    ply_state *st = calloc(1, sizeof *st);
+    ply_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", path);
     st->path = path;
     st->err = err;
@@ -507,9 +507,9 @@ lu_result lu_mesh_load_ply(const char *path, lu_mesh *mesh, lu_error *err) {
     lu_stream_close(&st->s);
     if (r == LU_OK) r = lu_mb_finish(&st->b, normals, mesh, path, err);
     lu_mb_free(&st->b);
-    for (int i = 0; i < st->nelems; i++) free(st->elems[i].props);
-    free(st->elems);
-    free(st);
+    for (int i = 0; i < st->nelems; i++) lu_free(st->elems[i].props);
+    lu_free(st->elems);
+    lu_free(st);
     return r;
 }
 
@@ -550,7 +550,7 @@ lu_result lu_mesh_save_ply(const lu_mesh *mesh, const char *path, lu_error *err)
     lu_atomic_file f;
     lu_result r = lu_atomic_open(&f, path, err);
     if (r != LU_OK) return r;
-    out_buf *o = malloc(sizeof *o);
+    out_buf *o = lu_malloc(sizeof *o);
     if (!o) {
         lu_atomic_abort(&f);
         return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", path);
@@ -587,7 +587,7 @@ lu_result lu_mesh_save_ply(const lu_mesh *mesh, const char *path, lu_error *err)
     }
     if (o->n && fwrite(o->buf, 1, o->n, o->fp) != o->n) o->ok = false;
     bool ok = o->ok;
-    free(o);
+    lu_free(o);
     if (!ok) {
         lu_atomic_abort(&f);
         return lu_fail(err, LU_ERR_IO, "%s: write failed", path);

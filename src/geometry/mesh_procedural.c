@@ -79,13 +79,13 @@ static lu_result make_sphere(const lu_kvlist *params, lu_mesh *mesh, const char 
     uint32_t nt = 20u << (2 * subdiv), nv = 10u * (1u << (2 * subdiv)) + 2u;
     r = lu_mesh_alloc(mesh, nv, nt, err);
     if (r != LU_OK) return r;
-    double(*pos)[3] = malloc((size_t)nv * sizeof *pos);
-    uint32_t *tri = malloc((size_t)nt * 3 * sizeof *tri), *next = malloc((size_t)nt * 3 * sizeof *next);
+    double(*pos)[3] = lu_malloc((size_t)nv * sizeof *pos);
+    uint32_t *tri = lu_malloc((size_t)nt * 3 * sizeof *tri), *next = lu_malloc((size_t)nt * 3 * sizeof *next);
     size_t slots = 1;
     while (slots < (size_t)nt) slots <<= 1; /* the last level adds 1.5 nt / 4 midpoints */
-    edge_map em = {calloc(slots, sizeof(uint64_t)), malloc(slots * sizeof(uint32_t)), slots - 1};
+    edge_map em = {lu_calloc(slots, sizeof(uint64_t)), lu_malloc(slots * sizeof(uint32_t)), slots - 1};
     if (!pos || !tri || !next || !em.keys || !em.vals) {
-        free(pos), free(tri), free(next), free(em.keys), free(em.vals);
+        lu_free(pos), lu_free(tri), lu_free(next), lu_free(em.keys), lu_free(em.vals);
         lu_mesh_destroy(mesh);
         return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for an icosphere with %u triangles", where, nt);
     }
@@ -127,7 +127,7 @@ static lu_result make_sphere(const lu_kvlist *params, lu_mesh *mesh, const char 
     for (uint32_t i = 0; i < nv; i++)
         set_v(mesh, i, radius * pos[i][0], radius * pos[i][1], radius * pos[i][2], pos[i][0], pos[i][1], pos[i][2]);
     memcpy(mesh->indices, tri, (size_t)nt * 3 * sizeof *tri);
-    free(pos), free(tri), free(next), free(em.keys), free(em.vals);
+    lu_free(pos), lu_free(tri), lu_free(next), lu_free(em.keys), lu_free(em.vals);
     return LU_OK;
 }
 

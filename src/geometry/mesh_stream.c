@@ -18,7 +18,7 @@ lu_result lu_stream_open(lu_stream *s, const char *path, lu_error *err) {
     if ((unsigned long long)st.st_size > LU_MAX_FILE_BYTES)
         return lu_fail(err, LU_ERR_LIMIT, "%s: %lld bytes exceeds the limit of %llu", path, (long long)st.st_size,
                        (unsigned long long)LU_MAX_FILE_BYTES);
-    s->buf = malloc(LU_STREAM_CHUNK + 1);
+    s->buf = lu_malloc(LU_STREAM_CHUNK + 1);
     if (!s->buf) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for the read buffer", path);
     s->buf[0] = '\0';
     s->cap = LU_STREAM_CHUNK;
@@ -26,7 +26,7 @@ lu_result lu_stream_open(lu_stream *s, const char *path, lu_error *err) {
     s->gz = gzopen(path, "rb");
     if (!s->gz) {
         int e = errno;
-        free(s->buf);
+        lu_free(s->buf);
         s->buf = NULL;
         return lu_fail(err, e ? LU_ERR_IO : LU_ERR_NOMEM, "%s: cannot open: %s", path,
                        e ? strerror(e) : "out of memory");
@@ -37,7 +37,7 @@ lu_result lu_stream_open(lu_stream *s, const char *path, lu_error *err) {
 
 void lu_stream_close(lu_stream *s) {
     if (s->gz) gzclose(s->gz);
-    free(s->buf);
+    lu_free(s->buf);
     s->gz = NULL;
     s->buf = NULL;
 }

@@ -63,9 +63,9 @@ static void vox_rows(void *ctx, int64_t begin, int64_t end, int thread_index) {
     const int nx = j->n[0], ny = j->n[1], ss = j->ss;
     const double hs = j->h / ss;
     int cap = 64;
-    lu_hit *hits = malloc((size_t)cap * sizeof *hits);
-    int *partial = malloc((size_t)nx * sizeof *partial);
-    int *full_diff = malloc(((size_t)nx + 1) * sizeof *full_diff);
+    lu_hit *hits = lu_malloc((size_t)cap * sizeof *hits);
+    int *partial = lu_malloc((size_t)nx * sizeof *partial);
+    int *full_diff = lu_malloc(((size_t)nx + 1) * sizeof *full_diff);
     if (!hits || !partial || !full_diff) {
         atomic_store(&j->failed, 1);
         goto done;
@@ -83,7 +83,7 @@ static void vox_rows(void *ctx, int64_t begin, int64_t end, int thread_index) {
                 const lu_vec3 o = lu_v3(j->x0, y, z), d = lu_v3(1.0f, 0.0f, 0.0f);
                 int n = lu_accel_all_hits(j->a, o, d, 0.0f, INFINITY, hits, cap);
                 if (n > cap) {
-                    lu_hit *more = realloc(hits, (size_t)n * sizeof *hits);
+                    lu_hit *more = lu_realloc(hits, (size_t)n * sizeof *hits);
                     if (!more) n = -1;
                     else {
                         hits = more;
@@ -123,9 +123,9 @@ static void vox_rows(void *ctx, int64_t begin, int64_t end, int thread_index) {
         }
     }
 done:
-    free(hits);
-    free(partial);
-    free(full_diff);
+    lu_free(hits);
+    lu_free(partial);
+    lu_free(full_diff);
 }
 
 lu_result lu_voxelize(const lu_accel *a, lu_aabb bounds, int resolution, int ss, lu_grid *g, lu_error *err) {
@@ -164,7 +164,7 @@ lu_result lu_voxelize(const lu_accel *a, lu_aabb bounds, int resolution, int ss,
     if (total > LU_MAX_GRID_VOXELS)
         return lu_fail(err, LU_ERR_LIMIT, "voxelize: %dx%dx%d voxels exceed the limit %llu", j.n[0], j.n[1],
                        j.n[2], (unsigned long long)LU_MAX_GRID_VOXELS);
-    j.data = calloc((size_t)total, sizeof(float));
+    j.data = lu_calloc((size_t)total, sizeof(float));
     if (!j.data) return lu_fail(err, LU_ERR_NOMEM, "voxelize: out of memory for %llu voxels",
                                 (unsigned long long)total);
     atomic_init(&j.failed, 0);
@@ -175,7 +175,7 @@ lu_result lu_voxelize(const lu_accel *a, lu_aabb bounds, int resolution, int ss,
         j.x0 = (float)(fmin(j.lo[0], j.mesh_bounds.lo.x) - j.h);
         lu_parallel_for((int64_t)j.n[1] * j.n[2], 0, vox_rows, &j, "voxelize");
         if (atomic_load(&j.failed)) {
-            free(j.data);
+            lu_free(j.data);
             return lu_fail(err, LU_ERR_NOMEM, "voxelize: out of memory for ray hits");
         }
     }

@@ -13,7 +13,7 @@ lu_result lu_image_create(lu_image *img, int width, int height, lu_error *err) {
     if (width > LU_MAX_IMAGE_DIM || height > LU_MAX_IMAGE_DIM)
         return lu_fail(err, LU_ERR_LIMIT, "image size %dx%d exceeds the limit of %d per side", width, height,
                        LU_MAX_IMAGE_DIM);
-    img->rgb = calloc((size_t)width * (size_t)height * 3, sizeof(float));
+    img->rgb = lu_calloc((size_t)width * (size_t)height * 3, sizeof(float));
     if (!img->rgb) return lu_fail(err, LU_ERR_NOMEM, "out of memory for a %dx%d image", width, height);
     img->width = width;
     img->height = height;
@@ -22,7 +22,7 @@ lu_result lu_image_create(lu_image *img, int width, int height, lu_error *err) {
 
 void lu_image_destroy(lu_image *img) {
     if (!img) return;
-    free(img->rgb);
+    lu_free(img->rgb);
     memset(img, 0, sizeof *img);
 }
 

@@ -152,7 +152,7 @@ lu_result lu_image_diff_false_colour(const lu_image *a, const lu_image *b, float
     if (!isfinite(scale) || scale < 0)
         return lu_fail(err, LU_ERR_RANGE, "false-colour scale %g must be finite and >= 0 (0 = automatic)", scale);
     const size_t n = (size_t)a->width * a->height;
-    float *d = malloc(n * sizeof *d);
+    float *d = lu_malloc(n * sizeof *d);
     if (!d) return lu_fail(err, LU_ERR_NOMEM, "false-colour difference: out of memory");
     float dmax = 0;
     for (size_t i = 0; i < n; i++) {
@@ -161,14 +161,14 @@ lu_result lu_image_diff_false_colour(const lu_image *a, const lu_image *b, float
         if (d[i] > dmax) dmax = d[i];
     }
     if (scale == 0) {
-        float *tmp = malloc(n * sizeof *tmp);
+        float *tmp = lu_malloc(n * sizeof *tmp);
         if (!tmp) {
-            free(d);
+            lu_free(d);
             return lu_fail(err, LU_ERR_NOMEM, "false-colour difference: out of memory");
         }
         memcpy(tmp, d, n * sizeof *tmp);
         scale = select_kth(tmp, n, (size_t)(0.99 * (double)(n - 1)));
-        free(tmp);
+        lu_free(tmp);
         if (scale <= 0) scale = dmax; /* mostly-equal images: show the few differences */
     }
     if ((res = lu_image_create(out, a->width, a->height, err)) == LU_OK) {
@@ -184,6 +184,6 @@ lu_result lu_image_diff_false_colour(const lu_image *a, const lu_image *b, float
             for (int c = 0; c < 3; c++) out->rgb[3 * i + c] = c0[c] + f * (c1[c] - c0[c]);
         }
     }
-    free(d);
+    lu_free(d);
     return res;
 }

@@ -136,7 +136,7 @@ lu_result lu_pfm_load(const char *path, lu_image *img, lu_error *err) {
         goto done;
     }
     if ((res = lu_image_create(img, (int)w, (int)h, err)) != LU_OK) goto done;
-    if (!(row = malloc(row_floats * sizeof *row))) {
+    if (!(row = lu_malloc(row_floats * sizeof *row))) {
         res = lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", path);
         goto done;
     }
@@ -162,7 +162,7 @@ lu_result lu_pfm_load(const char *path, lu_image *img, lu_error *err) {
     }
     res = LU_OK;
 done:
-    free(row);
+    lu_free(row);
     fclose(fp);
     if (res != LU_OK) lu_image_destroy(img);
     return res;
@@ -173,7 +173,7 @@ lu_result lu_pfm_save(const lu_image *img, const char *path, lu_error *err) {
     lu_result res = lu_atomic_open(&f, path, err);
     if (res != LU_OK) return res;
     const size_t row_floats = (size_t)img->width * 3;
-    float *row = malloc(row_floats * sizeof *row);
+    float *row = lu_malloc(row_floats * sizeof *row);
     if (!row) {
         lu_atomic_abort(&f);
         return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", path);
@@ -184,7 +184,7 @@ lu_result lu_pfm_save(const lu_image *img, const char *path, lu_error *err) {
         if (!host_little_endian()) swap32(row, row_floats);
         ok = fwrite(row, sizeof *row, row_floats, f.fp) == row_floats;
     }
-    free(row);
+    lu_free(row);
     if (!ok) {
         int e = errno;
         lu_atomic_abort(&f);

@@ -61,10 +61,10 @@ static lu_result encode_png(png_io *io, int w, int h, png_bytep *rows, lu_error 
 lu_result lu_png_save(const lu_image *img, const char *path, float exposure, lu_error *err) {
     const int w = img->width, h = img->height;
     const float gain = exp2f(exposure);
-    png_bytep pixels = malloc((size_t)w * h * 3);
-    png_bytep *rows = malloc((size_t)h * sizeof *rows);
+    png_bytep pixels = lu_malloc((size_t)w * h * 3);
+    png_bytep *rows = lu_malloc((size_t)h * sizeof *rows);
     if (!pixels || !rows) {
-        free(pixels), free(rows);
+        lu_free(pixels), lu_free(rows);
         return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", path);
     }
     for (size_t i = 0; i < (size_t)w * h * 3; i++) {
@@ -80,8 +80,8 @@ lu_result lu_png_save(const lu_image *img, const char *path, float exposure, lu_
         if (res == LU_OK) res = lu_atomic_commit(&f, err);
         else lu_atomic_abort(&f);
     }
-    free(pixels);
-    free(rows);
+    lu_free(pixels);
+    lu_free(rows);
     return res;
 }
 
@@ -131,8 +131,8 @@ static lu_result decode_png(png_io *io, lu_image *img, png_bytep **rows_out,
         png_destroy_read_struct(&png, &info, NULL);
         return lu_fail(err, LU_ERR_UNSUPPORTED, "%s: unexpected PNG layout after conversion to RGB", io->path);
     }
-    png_bytep pixels = *pixels_out = malloc(rowbytes * h);
-    png_bytep *rows = *rows_out = malloc(h * sizeof *rows);
+    png_bytep pixels = *pixels_out = lu_malloc(rowbytes * h);
+    png_bytep *rows = *rows_out = lu_malloc(h * sizeof *rows);
     if (!pixels || !rows || lu_image_create(img, (int)w, (int)h, err) != LU_OK) {
         png_destroy_read_struct(&png, &info, NULL);
         return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for a %ux%u image", io->path, w, h);
@@ -166,8 +166,8 @@ lu_result lu_png_load(const char *path, lu_image *img, lu_error *err) {
     png_bytep *rows = NULL;
     png_bytep pixels = NULL;
     lu_result res = decode_png(&io, img, &rows, &pixels, err);
-    free(rows);
-    free(pixels);
+    lu_free(rows);
+    lu_free(pixels);
     fclose(fp);
     if (res != LU_OK) lu_image_destroy(img);
     return res;

@@ -29,30 +29,30 @@ struct lu_frame_stage {
 };
 
 lu_result lu_frame_stage_create(lu_frame_stage **out, lu_error *err) {
-    *out = calloc(1, sizeof **out);
+    *out = lu_calloc(1, sizeof **out);
     return *out ? LU_OK : lu_fail(err, LU_ERR_NOMEM, "out of memory");
 }
 
 void lu_frame_stage_destroy(lu_frame_stage *s) {
     if (!s) return;
-    free(s->lights);
-    free(s->media);
-    free(s->objects);
+    lu_free(s->lights);
+    lu_free(s->media);
+    lu_free(s->objects);
     lu_frame_records_free(&s->rec);
-    free(s);
+    lu_free(s);
 }
 
 lu_result lu_frame_records_update(lu_frame_records *rec, const lu_scene *scene, lu_error *err) {
     const lu_camera *c = &scene->camera;
     rec->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
     if (scene->medium_count > rec->medium_cap) {
-        lu_k_medium *m = realloc(rec->media, (size_t)scene->medium_count * sizeof *m);
+        lu_k_medium *m = lu_realloc(rec->media, (size_t)scene->medium_count * sizeof *m);
         if (!m) return lu_fail(err, LU_ERR_NOMEM, "frame records: out of memory");
         rec->media = m;
         rec->medium_cap = scene->medium_count;
     }
     if (scene->light_count > rec->light_cap) {
-        lu_k_light *l = realloc(rec->lights, (size_t)scene->light_count * sizeof *l);
+        lu_k_light *l = lu_realloc(rec->lights, (size_t)scene->light_count * sizeof *l);
         if (!l) return lu_fail(err, LU_ERR_NOMEM, "frame records: out of memory");
         rec->lights = l;
         rec->light_cap = scene->light_count;
@@ -64,8 +64,8 @@ lu_result lu_frame_records_update(lu_frame_records *rec, const lu_scene *scene, 
 }
 
 void lu_frame_records_free(lu_frame_records *rec) {
-    free(rec->media);
-    free(rec->lights);
+    lu_free(rec->media);
+    lu_free(rec->lights);
     memset(rec, 0, sizeof *rec);
 }
 
@@ -156,7 +156,7 @@ lu_result lu_frame_stage_begin(lu_frame_stage *s, const lu_scene *scene, lu_fram
 
 static lu_result copy_array(void **dst, int *cap, const void *src, int count, size_t size, lu_error *err) {
     if (count > *cap) {
-        void *p = realloc(*dst, (size_t)count * size);
+        void *p = lu_realloc(*dst, (size_t)count * size);
         if (!p) return lu_fail(err, LU_ERR_NOMEM, "out of memory");
         *dst = p;
         *cap = count;

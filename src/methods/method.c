@@ -174,35 +174,72 @@ static lu_result prepare_state(lu_renderer *r, const lu_scene *scene, lu_error *
     r->state = NULL;
     double t0 = lu_time_seconds();
     lu_result e = r->method->prepare(scene, r->params, r->backend, &r->state, err);
-    r->prepare_ms = 1e3 * (lu_time_seconds() - t0);
+    r->stats.prepare_ms = 1e3 * (lu_time_seconds() - t0);
+    r->stats.prepares++;
     if (e != LU_OK) r->state = NULL;
     return e;
 }
 
-lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu_kvlist *settings, lu_backend backend,
-                             lu_renderer **out, lu_error *err) {
-    *out = NULL;
-    const lu_method *m = lu_method_find(method);
-    if (!m) {
-        int n;
-        const lu_method *const *all = lu_methods(&n);
-        char names[256] = "";
-        size_t used = 0;
-        for (int i = 0; i < n && used + 1 < sizeof names; i++)
-            used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "", all[i]->name);
-        return lu_fail(err, LU_ERR_INVALID_ARG, "no method named \"%s\" (available: %s)", method, names);
-    }
-    backend = lu_backend_resolve(backend, m);
-    if (!(m->backends & backend))
+static lu_result no_method(const char *method, lu_error *err) {
+    int n;
+    const lu_method *const *all = lu_methods(&n);
+    char names[256] = "";
+    size_t used = 0;
+    for (int i = 0; i < n && used + 1 < sizeof names; i++)
+        used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "", all[i]->name);
+    return lu_fail(err, LU_ERR_INVALID_ARG, "no method named \"%s\" (available: %s)", method, names);
+}
+
+/* The one place a descriptor's defaults are decided. */
+lu_result lu_renderer_desc_resolve(const lu_renderer_desc *desc, lu_renderer_desc *out, lu_error *err) {
+    static const lu_renderer_desc k_zero;
+    lu_renderer_desc d = desc ? *desc : k_zero;
+    if (!d.method) d.method = LU_DEFAULT_METHOD;
+    const lu_method *m = lu_method_find(d.method);
+    if (!m) return no_method(d.method, err);
+    d.method = m->name;
+    if (d.backend != LU_BACKEND_AUTO && d.backend != LU_BACKEND_CPU && d.backend != LU_BACKEND_GPU)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "renderer: backend %d is not an lu_backend", (int)d.backend);
+    d.backend = lu_backend_resolve(d.backend, m);
+    if (!(m->backends & d.backend))
         return lu_fail(err, LU_ERR_UNSUPPORTED, "method %s does not run on the %s backend", m->name,
-                       lu_backend_name(backend));
-    lu_result r = lu_settings_validate(settings, err);
+                       lu_backend_name(d.backend));
+    if (d.progressive.every <= 0) d.progressive.fn = NULL;
+    *out = d;
+    return LU_OK;
+}
+
+lu_result lu_renderer_make(const lu_renderer_desc *desc, const lu_scene *scene, lu_renderer **out, lu_error *err) {
+    *out = NULL;
+    lu_renderer_desc d;
+    lu_result r = lu_renderer_desc_resolve(desc, &d, err);
     if (r != LU_OK) return r;
-    lu_renderer *rd = calloc(1, sizeof *rd);
-    if (!rd) return lu_fail(err, LU_ERR_NOMEM, "out of memory");
+    /* settings, then the "set" texts over them */
+    lu_kvlist merged = {0};
+    for (int i = 0; d.settings && i < d.settings->count && r == LU_OK; i++) {
+        const lu_kv *kv = &d.settings->items[i];
+        r = kv->count ? lu_kv_set_number(&merged, kv->key, kv->v, kv->count, err)
+                      : lu_kv_set_string(&merged, kv->key, kv->str, err);
+    }
+    for (int i = 0; d.set && d.set[i] && r == LU_OK; i++) r = lu_kv_parse_assignment(&merged, d.set[i], err);
+    if (r == LU_OK) r = lu_settings_validate(&merged, err);
+    if (r != LU_OK) {
+        lu_kv_free(&merged);
+        return r;
+    }
+    const lu_method *m = lu_method_find(d.method);
+    lu_renderer *rd = lu_calloc(1, sizeof *rd);
+    if (!rd) {
+        lu_kv_free(&merged);
+        return lu_fail(err, LU_ERR_NOMEM, "out of memory");
+    }
     rd->method = m;
-    rd->backend = backend;
-    r = lu_method_resolve_params(m, settings, rd->params, err);
+    rd->backend = d.backend;
+    rd->progressive = d.progressive;
+    rd->stats.method = m->name;
+    rd->stats.backend = d.backend;
+    r = lu_method_resolve_params(m, &merged, rd->params, err);
+    lu_kv_free(&merged);
     if (r == LU_OK) r = lu_frame_stage_create(&rd->stage, err);
     gpu_enter(rd);
     if (r == LU_OK) r = prepare_state(rd, scene, err);
@@ -212,11 +249,19 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
     gpu_leave(rd);
     if (r != LU_OK) {
         lu_frame_stage_destroy(rd->stage);
-        free(rd);
+        lu_free(rd);
         return r;
     }
     *out = rd;
     return LU_OK;
+}
+
+lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu_kvlist *settings, lu_backend backend,
+                             lu_renderer **out, lu_error *err) {
+    *out = NULL;
+    if (!method) return lu_fail(err, LU_ERR_INVALID_ARG, "renderer: no method named (NULL)");
+    lu_renderer_desc d = {.method = method, .backend = backend, .settings = settings};
+    return lu_renderer_make(&d, scene, out, err);
 }
 
 static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err);
@@ -240,6 +285,7 @@ static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *o
     double t0 = lu_time_seconds();
     lu_frame frame;
     lu_result b = lu_frame_stage_begin(r->stage, scene, &frame, err);
+    r->stats.frame_update_ms = 1e3 * (lu_time_seconds() - t0);
     if (b != LU_OK) return b;
     if ((frame.changed & (LU_CHANGE_GEOMETRY | r->method->prepare_deps)) || !r->state) {
         /* Objects are baked to world space and the methods' accelerations,
@@ -249,6 +295,7 @@ static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *o
         lu_result e = prepare_state(r, scene, err);
         if (e != LU_OK) {
             r->frames = 0;
+            r->stats.frame_ms = 1e3 * (lu_time_seconds() - t0);
             return e;
         }
         lu_frame_rebuilt(&frame, "renderer.prepare");
@@ -258,13 +305,39 @@ static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *o
         frame.changed = LU_CHANGE_ALL;
         frame.lights_changed = ~0ull;
     }
+    r->stats.changed = frame.changed;
+    double t1 = lu_time_seconds();
     lu_result e = r->progressive.fn && r->method->render_progressive
                       ? r->method->render_progressive(r->state, &frame, out, &r->progressive, err)
                       : r->method->render(r->state, &frame, out, err);
+    double t2 = lu_time_seconds();
     lu_result s = lu_frame_stage_end(r->stage, scene, e == LU_OK, err);
     r->frames = e == LU_OK ? r->frames + 1 : 0;
-    r->last_render_ms = 1e3 * (lu_time_seconds() - t0);
+    if (e == LU_OK) r->stats.frames++;
+    r->stats.render_ms = 1e3 * (t2 - t1);
+    r->stats.frame_update_ms += 1e3 * (lu_time_seconds() - t2);
+    r->stats.frame_ms = 1e3 * (lu_time_seconds() - t0);
     return e != LU_OK ? e : s;
+}
+
+lu_result lu_renderer_get_stats(const lu_renderer *r, lu_renderer_stats *out, lu_error *err) {
+    if (!r || !out) return lu_fail(err, LU_ERR_INVALID_ARG, "renderer stats: NULL %s", r ? "out" : "renderer");
+    *out = r->stats;
+    out->products = lu_frame_stage_stats(r->stage)->count;
+    return LU_OK;
+}
+
+lu_result lu_renderer_get_method(const lu_renderer *r, const lu_method **method, lu_error *err) {
+    if (!r || !method) return lu_fail(err, LU_ERR_INVALID_ARG, "renderer method: NULL %s", r ? "out" : "renderer");
+    *method = r->method;
+    return LU_OK;
+}
+
+lu_result lu_renderer_get_params(const lu_renderer *r, double *values, int cap, int *count, lu_error *err) {
+    if (!r || !count) return lu_fail(err, LU_ERR_INVALID_ARG, "renderer params: NULL %s", r ? "count" : "renderer");
+    *count = r->method->param_count;
+    for (int i = 0; values && i < r->method->param_count && i < cap; i++) values[i] = r->params[i];
+    return LU_OK;
 }
 
 bool lu_renderer_set_progressive(lu_renderer *r, lu_progressive_fn fn, void *user, int every) {
@@ -280,7 +353,7 @@ void lu_renderer_destroy(lu_renderer *r) {
     r->method->destroy(r->state);
     gpu_leave(r);
     lu_frame_stage_destroy(r->stage);
-    free(r);
+    lu_free(r);
 }
 
 void lu_renderer_invalidate(lu_renderer *r, unsigned what) { lu_frame_stage_invalidate(r->stage, what); }

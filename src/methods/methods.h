@@ -6,6 +6,19 @@
 
 #include "kernels/lu_optics.h"
 
+/* The renderer behind the public handle (lu_renderer in method.h). Only the
+ * wrapper (method.c) writes it; a method's own stats query may read state. */
+struct lu_renderer {
+    const lu_method *method;
+    lu_backend backend;      /* resolved: CPU or GPU, never AUTO */
+    double params[LU_MAX_PARAMS];
+    void *state;
+    lu_progressive progressive;  /* see lu_renderer_set_progressive */
+    struct lu_frame_stage *stage;   /* what the previous frame rendered */
+    int frames;                     /* frames rendered since create or the last failed frame */
+    lu_renderer_stats stats;
+};
+
 extern const lu_method lu_method_reference;
 extern const lu_method lu_method_bssrdf;
 extern const lu_method lu_method_pathtrace;

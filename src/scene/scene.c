@@ -13,9 +13,9 @@ void lu_scene_destroy(lu_scene *s) {
         lu_mesh_destroy(&s->media[i].boundary);
     }
     for (int i = 0; i < s->object_count; i++) lu_mesh_destroy(&s->objects[i].mesh);
-    free(s->lights);
-    free(s->media);
-    free(s->objects);
+    lu_free(s->lights);
+    lu_free(s->media);
+    lu_free(s->objects);
     memset(s, 0, sizeof *s);
 }
 

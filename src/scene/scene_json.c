@@ -1,6 +1,8 @@
 /* Scene JSON -> lu_scene (docs/architecture.md §7, docs/scene-format.md). Strict: an unknown key, a wrong type,
  * a duplicate key or an out-of-range number is an error naming the JSON path,
- * e.g. "scenes/smoke.json: $.lights[1].intensity: expected 3 numbers". */
+ * e.g. "scenes/smoke.json: $.lights[1].intensity: expected 3 numbers". The
+ * file's values go through the scene builder (scene_builder.c), which checks
+ * and assembles every scene, loaded or built. */
 #include <lucent/lucent.h>
 
 #include <cjson/cJSON.h>
@@ -334,13 +336,7 @@ static lu_result parse_scattering(parse_ctx *c, const cJSON *m, const jpath *mp,
 
 static lu_result parse_material(parse_ctx *c, const cJSON *parent, const jpath *p, const char *key,
                                 lu_material *out) {
-    memset(out, 0, sizeof *out);
-    out->type = LU_MATERIAL_DIFFUSE;
-    out->albedo = lu_v3s(0.8f);
-    out->specular = lu_v3s(0.0f);
-    out->shininess = 32.0f;
-    out->eta = 1.3f;
-    out->mm_per_unit = 1.0f;
+    lu_material_defaults(out);
     const cJSON *m = cJSON_GetObjectItemCaseSensitive(parent, key);
     if (!m) return LU_OK;
     jpath mp = jp_key(p, key);
@@ -406,8 +402,9 @@ static lu_result parse_material(parse_ctx *c, const cJSON *parent, const jpath *
     return LU_OK;
 }
 
-static lu_result parse_camera(parse_ctx *c, const cJSON *root, lu_camera *cam) {
+static lu_result parse_camera(parse_ctx *c, const cJSON *root, lu_scene_builder *b) {
     jpath p = {"$.camera"};
+    lu_camera camera, *cam = &camera;
     const cJSON *o = cJSON_GetObjectItemCaseSensitive(root, "camera");
     if (!o) return scene_fail(c, &p, LU_ERR_SCENE, "missing required object");
     static const char *const keys[] = {"position", "look_at", "up", "fov_y_deg", "width", "height", NULL};
@@ -418,13 +415,10 @@ static lu_result parse_camera(parse_ctx *c, const cJSON *root, lu_camera *cam) {
     TRY(get_float(c, o, &p, "fov_y_deg", 45.0, 0.01, 179.0, false, &cam->fov_y_deg));
     TRY(get_int(c, o, &p, "width", 512, 1, LU_MAX_IMAGE_DIM, false, &cam->width));
     TRY(get_int(c, o, &p, "height", 512, 1, LU_MAX_IMAGE_DIM, false, &cam->height));
-    lu_vec3 fwd = lu_v3_sub(cam->look_at, cam->position);
-    if (lu_v3_len(fwd) <= 0.0f) return scene_fail(c, &p, LU_ERR_SCENE, "position and look_at coincide");
-    if (lu_v3_len(lu_v3_cross(lu_v3_norm(fwd), lu_v3_norm(cam->up))) < 1e-6f)
-        return scene_fail(c, &p, LU_ERR_SCENE, "up is parallel to the view direction");
-    return LU_OK;
+    return wrap_loader(c, &p, lu_scene_builder_set_camera(b, cam, c->err));
 }
 
+/* Fills *l (the builder checks and adds it). */
 static lu_result parse_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_light *l) {
     memset(l, 0, sizeof *l);
     const char *type;
@@ -445,10 +439,6 @@ static lu_result parse_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_li
         TRY(get_vec3(c, o, p, "intensity", lu_v3s(0), 0, 1e9, true, true, &l->intensity));
         TRY(get_float(c, o, p, "inner_deg", 20.0, 0.0, 89.9, false, &l->inner_deg));
         TRY(get_float(c, o, p, "outer_deg", 25.0, 0.01, 89.9, false, &l->outer_deg));
-        if (l->inner_deg > l->outer_deg) {
-            jpath ip = jp_key(p, "inner_deg");
-            return scene_fail(c, &ip, LU_ERR_RANGE, "inner_deg %g exceeds outer_deg %g", l->inner_deg, l->outer_deg);
-        }
     } else if (strcmp(type, "directional") == 0) {
         static const char *const keys[] = {"type", "direction", "irradiance", NULL};
         TRY(check_object(c, o, p, keys));
@@ -484,14 +474,17 @@ static lu_result parse_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_li
         return scene_fail(c, &tp, LU_ERR_SCENE, "unknown light type \"%s\" (point, spot, directional, environment)",
                           type);
     }
-    if (l->type != LU_LIGHT_POINT) {
-        if (lu_v3_len(l->direction) <= 0.0f) {
-            jpath dp = jp_key(p, "direction");
-            return scene_fail(c, &dp, LU_ERR_SCENE, "direction must be non-zero");
-        }
-        l->direction = lu_v3_norm(l->direction);
-    }
     return LU_OK;
+}
+
+static lu_result add_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_scene_builder *b) {
+    lu_light l;
+    lu_result r = parse_light(c, o, p, &l);
+    if (r != LU_OK) {
+        lu_image_destroy(&l.env);
+        return r;
+    }
+    return wrap_loader(c, p, lu_scene_builder_add_light(b, &l, c->err));
 }
 
 /* "density": {"constant": v} | {"file": "x.nvdb", "grid": "density"} |
@@ -596,128 +589,83 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
                       "expected one of \"constant\", \"file\", \"raw\", \"voxelize\", \"procedural\"");
 }
 
-static void medium_finish(lu_medium *m) {
-    lu_aabb box = lu_aabb_empty();
-    if (m->kind == LU_DENSITY_GRID) box = lu_aabb_transform(&m->index_to_world, lu_grid_index_support(&m->grid));
-    if (m->has_boundary) {
-        lu_aabb mb = lu_mesh_bounds(&m->boundary);
-        box = m->kind == LU_DENSITY_GRID ? (lu_aabb){lu_v3_max(box.lo, mb.lo), lu_v3_min(box.hi, mb.hi)} : mb;
-    }
-    m->bounds = box;
-}
-
-static lu_result parse_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_medium *m) {
+static lu_result parse_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_medium *m, lu_affine *xf,
+                              bool *surface_given) {
     static const char *const keys[] = {"density", "sigma_s", "sigma_a", "phase_g", "transform", "boundary", NULL};
     TRY(check_object(c, o, p, keys));
-    m->from_object = -1;
-    m->eta = 1.0f;
     TRY(parse_density(c, o, p, m));
-    if (m->kind == LU_DENSITY_GRID && m->grid.generation == 0) lu_grid_stamp_new(&m->grid);
     TRY(get_vec3(c, o, p, "sigma_s", lu_v3s(1), 0, 1e6, true, true, &m->sigma_s));
     TRY(get_vec3(c, o, p, "sigma_a", lu_v3s(0), 0, 1e6, false, true, &m->sigma_a));
     TRY(get_float(c, o, p, "phase_g", 0.0, -0.99, 0.99, false, &m->phase_g));
-    lu_affine xf;
-    TRY(parse_transform(c, o, p, &xf));
-    m->index_to_world = m->kind == LU_DENSITY_GRID ? lu_affine_mul(&xf, &m->grid.index_to_world) : xf;
-    if (!lu_affine_invert(&m->index_to_world, &m->world_to_index))
-        return scene_fail(c, p, LU_ERR_SCENE, "the grid's index-to-world map is singular");
-    const cJSON *b = cJSON_GetObjectItemCaseSensitive(o, "boundary");
-    if (b) {
+    TRY(parse_transform(c, o, p, xf));
+    const cJSON *bd = cJSON_GetObjectItemCaseSensitive(o, "boundary");
+    if (bd) {
         jpath bp = jp_key(p, "boundary");
         static const char *const bkeys[] = {"mesh", "eta", "surface", NULL};
-        TRY(check_object(c, b, &bp, bkeys));
-        TRY(parse_mesh_source(c, b, &bp, "mesh", &m->boundary));
-        lu_mesh_transform(&m->boundary, &xf);
+        TRY(check_object(c, bd, &bp, bkeys));
+        TRY(parse_mesh_source(c, bd, &bp, "mesh", &m->boundary));
         m->has_boundary = true;
-        TRY(get_float(c, b, &bp, "eta", 1.5, 1.0, 4.0, false, &m->eta));
-        TRY(parse_material(c, b, &bp, "surface", &m->surface));
-        if (!cJSON_HasObjectItem(b, "surface")) {
-            /* Default boundary: a clear glossy coat, no diffuse layer. */
-            m->surface.albedo = lu_v3s(0.0f);
-            m->surface.specular = lu_v3s(1.0f);
-            m->surface.shininess = 64.0f;
-        }
-        if (m->surface.type != LU_MATERIAL_DIFFUSE) {
-            jpath sp = jp_key(&bp, "surface");
-            return scene_fail(c, &sp, LU_ERR_SCENE, "a boundary surface must be of type \"diffuse\"");
-        }
-    } else if (m->kind == LU_DENSITY_CONSTANT) {
-        return scene_fail(c, p, LU_ERR_SCENE, "a constant density needs a \"boundary\" mesh to bound it");
+        TRY(get_float(c, bd, &bp, "eta", 1.5, 1.0, 4.0, false, &m->eta));
+        TRY(parse_material(c, bd, &bp, "surface", &m->surface));
+        *surface_given = cJSON_HasObjectItem(bd, "surface");
     }
-    medium_finish(m);
     return LU_OK;
 }
 
-static lu_result parse_object(parse_ctx *c, const cJSON *o, const jpath *p, lu_object *obj) {
+static lu_result add_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_scene_builder *b) {
+    lu_medium m;
+    memset(&m, 0, sizeof m);
+    lu_affine xf;
+    bool surface_given = false;
+    lu_result r = parse_medium(c, o, p, &m, &xf, &surface_given);
+    if (r != LU_OK) {
+        lu_grid_destroy(&m.grid);
+        lu_mesh_destroy(&m.boundary);
+        return r;
+    }
+    lu_medium_desc d = {.kind = m.kind, .grid = &m.grid, .constant = m.constant, .sigma_s = m.sigma_s,
+                        .sigma_a = m.sigma_a, .phase_g = m.phase_g, .transform = &xf,
+                        .boundary = m.has_boundary ? &m.boundary : NULL, .eta = m.eta,
+                        .surface = surface_given ? &m.surface : NULL};
+    r = lu_scene_builder_add_medium(b, &d, c->err);
+    lu_grid_destroy(&m.grid);   /* empty unless the builder refused the kind */
+    return wrap_loader(c, p, r);
+}
+
+static lu_result add_object(parse_ctx *c, const cJSON *o, const jpath *p, lu_scene_builder *b) {
     static const char *const keys[] = {"mesh", "transform", "material", NULL};
     TRY(check_object(c, o, p, keys));
-    TRY(parse_mesh_source(c, o, p, "mesh", &obj->mesh));
+    lu_mesh mesh = {0};
     lu_affine xf;
-    TRY(parse_transform(c, o, p, &xf));
-    lu_mesh_transform(&obj->mesh, &xf);
-    return parse_material(c, o, p, "material", &obj->material);
+    lu_material mat;
+    lu_result r = parse_mesh_source(c, o, p, "mesh", &mesh);
+    if (r == LU_OK) r = parse_transform(c, o, p, &xf);
+    if (r == LU_OK) r = parse_material(c, o, p, "material", &mat);
+    if (r != LU_OK) {
+        lu_mesh_destroy(&mesh);
+        return r;
+    }
+    return wrap_loader(c, p, lu_scene_builder_add_object(b, &mesh, &xf, &mat, c->err));
 }
 
-/* Each translucent object is also a bounded homogeneous medium (see scene.h). */
-static lu_result add_object_media(parse_ctx *c, lu_scene *s) {
-    int extra = 0;
-    for (int i = 0; i < s->object_count; i++) extra += s->objects[i].material.type == LU_MATERIAL_TRANSLUCENT;
-    if (!extra) return LU_OK;
-    lu_medium *media = realloc(s->media, (size_t)(s->medium_count + extra) * sizeof *media);
-    if (!media) return lu_fail(c->err, LU_ERR_NOMEM, "%s: out of memory", c->file);
-    s->media = media;
-    for (int i = 0; i < s->object_count; i++) {
-        const lu_object *obj = &s->objects[i];
-        if (obj->material.type != LU_MATERIAL_TRANSLUCENT) continue;
-        lu_medium *m = &s->media[s->medium_count];
-        memset(m, 0, sizeof *m);
-        m->kind = LU_DENSITY_CONSTANT;
-        m->constant = 1.0f;
-        m->index_to_world = m->world_to_index = lu_affine_identity();
-        m->sigma_s = obj->material.sigma_s;
-        m->sigma_a = obj->material.sigma_a;
-        m->phase_g = obj->material.g;
-        m->has_boundary = true;
-        m->eta = obj->material.eta;
-        m->surface.type = LU_MATERIAL_DIFFUSE;
-        m->surface.specular = obj->material.specular;
-        m->surface.shininess = obj->material.shininess;
-        m->from_object = i;
-        s->medium_count++;
-        jpath p;
-        snprintf(p.s, sizeof p.s, "$.objects[%d]", i);
-        TRY(wrap_loader(c, &p, lu_mesh_alloc(&m->boundary, obj->mesh.vertex_count, obj->mesh.triangle_count, c->err)));
-        memcpy(m->boundary.positions, obj->mesh.positions, obj->mesh.vertex_count * sizeof(lu_vec3));
-        memcpy(m->boundary.normals, obj->mesh.normals, obj->mesh.vertex_count * sizeof(lu_vec3));
-        memcpy(m->boundary.indices, obj->mesh.indices, 3u * obj->mesh.triangle_count * sizeof(uint32_t));
-        medium_finish(m);
+/* Parses each element of a JSON list and adds it to the builder with fn. */
+static lu_result parse_list(parse_ctx *c, const cJSON *root, const char *key, lu_scene_builder *b,
+                            lu_result (*fn)(parse_ctx *, const cJSON *, const jpath *, lu_scene_builder *)) {
+    const cJSON *list = cJSON_GetObjectItemCaseSensitive(root, key);
+    if (!list) return LU_OK;
+    jpath lp = {"$"};
+    lp = jp_key(&lp, key);
+    if (!cJSON_IsArray(list)) return scene_fail(c, &lp, LU_ERR_SCENE, "expected an array");
+    int n = cJSON_GetArraySize(list);
+    if (n > LU_SCENE_MAX_ITEMS)
+        return scene_fail(c, &lp, LU_ERR_LIMIT, "%d entries exceed the limit of %d", n, LU_SCENE_MAX_ITEMS);
+    int i = 0;
+    for (const cJSON *it = list->child; it; it = it->next, i++) {
+        jpath ip = jp_index(&lp, i);
+        TRY(fn(c, it, &ip, b));
     }
     return LU_OK;
 }
-
-/* Allocates the array for a JSON list and parses each element with fn. */
-#define PARSE_LIST(KEY, ARRAY, COUNT, FN)                                                           \
-    do {                                                                                            \
-        const cJSON *list_ = cJSON_GetObjectItemCaseSensitive(root, KEY);                           \
-        jpath lp_ = {"$." KEY};                                                                     \
-        if (list_) {                                                                                \
-            if (!cJSON_IsArray(list_)) return scene_fail(c, &lp_, LU_ERR_SCENE, "expected an array"); \
-            int n_ = cJSON_GetArraySize(list_);                                                     \
-            if (n_ > LU_SCENE_MAX_ITEMS)                                                            \
-                return scene_fail(c, &lp_, LU_ERR_LIMIT, "%d entries exceed the limit of %d", n_,  \
-                                  LU_SCENE_MAX_ITEMS);                                              \
-            if (n_ > 0) {                                                                           \
-                ARRAY = calloc((size_t)n_, sizeof *ARRAY);                                          \
-                if (!ARRAY) return lu_fail(c->err, LU_ERR_NOMEM, "%s: out of memory", c->file);     \
-            }                                                                                       \
-            int i_ = 0;                                                                             \
-            for (const cJSON *it_ = list_->child; it_; it_ = it_->next, i_++) {                     \
-                jpath ip_ = jp_index(&lp_, i_);                                                     \
-                COUNT = i_ + 1;                                                                     \
-                TRY(FN(c, it_, &ip_, &ARRAY[i_]));                                                  \
-            }                                                                                       \
-        }                                                                                           \
-    } while (0)
 
 static lu_result parse_root(parse_ctx *c, const cJSON *root, lu_scene *s) {
     jpath rp = {"$"};
@@ -728,12 +676,20 @@ static lu_result parse_root(parse_ctx *c, const cJSON *root, lu_scene *s) {
     TRY(get_string(c, root, &rp, "name", false, &str));
     TRY(get_string(c, root, &rp, "description", false, &str));
     TRY(get_string(c, root, &rp, "reproduces", false, &str));
-    TRY(parse_camera(c, root, &s->camera));
-    TRY(get_vec3(c, root, &rp, "background", lu_v3s(0), 0, 1e9, false, true, &s->background));
-    PARSE_LIST("lights", s->lights, s->light_count, parse_light);
-    PARSE_LIST("media", s->media, s->medium_count, parse_medium);
-    PARSE_LIST("objects", s->objects, s->object_count, parse_object);
-    return add_object_media(c, s);
+    lu_scene_builder *b;
+    TRY(lu_scene_builder_create(&b, c->err));
+    lu_vec3 background;
+    lu_result r = parse_camera(c, root, b);
+    if (r == LU_OK) r = get_vec3(c, root, &rp, "background", lu_v3s(0), 0, 1e9, false, true, &background);
+    if (r == LU_OK) lu_scene_builder_set_background(b, background);
+    if (r == LU_OK) r = parse_list(c, root, "lights", b, add_light);
+    if (r == LU_OK) r = parse_list(c, root, "media", b, add_medium);
+    if (r == LU_OK) r = parse_list(c, root, "objects", b, add_object);
+    if (r != LU_OK) {
+        lu_scene_builder_destroy(b);
+        return r;
+    }
+    return wrap_loader(c, &rp, lu_scene_builder_finish(b, s, c->err));
 }
 
 /* Byte offset -> "line L, column C" for cJSON's syntax errors. */
@@ -753,7 +709,6 @@ static void line_col(const char *text, size_t offset, int *line, int *col) {
 lu_result lu_scene_load_string(const char *json, const char *base_path, lu_scene *scene, lu_error *err) {
     memset(scene, 0, sizeof *scene);
     const char *file = base_path && *base_path ? base_path : "<scene>";
-    snprintf(scene->path, sizeof scene->path, "%s", base_path ? base_path : "");
     parse_ctx c = {file, err};
     size_t len = strlen(json);
     const char *end = NULL;
@@ -769,6 +724,7 @@ lu_result lu_scene_load_string(const char *json, const char *base_path, lu_scene
     lu_result r = parse_root(&c, root, scene);
     cJSON_Delete(root);
     if (r != LU_OK) lu_scene_destroy(scene);
+    else snprintf(scene->path, sizeof scene->path, "%s", base_path ? base_path : "");
     return r;
 }
 
@@ -779,10 +735,10 @@ lu_result lu_scene_load(const char *path, lu_scene *scene, lu_error *err) {
     lu_result r = lu_read_file(path, LU_SCENE_MAX_BYTES, &text, &size, err);
     if (r != LU_OK) return r;
     if (strlen(text) != size) {
-        free(text);
+        lu_free(text);
         return lu_fail(err, LU_ERR_FORMAT, "%s: offset %zu: NUL byte in a JSON file", path, strlen(text));
     }
     r = lu_scene_load_string(text, path, scene, err);
-    free(text);
+    lu_free(text);
     return r;
 }

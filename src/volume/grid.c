@@ -39,7 +39,7 @@ lu_result lu_grid_alloc(lu_grid *g, int nx, int ny, int nz, lu_error *err) {
         return lu_fail(err, LU_ERR_LIMIT, "grid of %d x %d x %d voxels exceeds the limit of %llu voxels", nx, ny, nz,
                        (unsigned long long)LU_MAX_GRID_VOXELS);
     size_t count = (size_t)(xy * (uint64_t)nz);
-    float *data = calloc(count, sizeof *data);
+    float *data = lu_calloc(count, sizeof *data);
     if (!data)
         return lu_fail(err, LU_ERR_NOMEM, "out of memory allocating a %d x %d x %d grid (%zu bytes)", nx, ny, nz,
                        count * sizeof *data);
@@ -53,7 +53,7 @@ lu_result lu_grid_alloc(lu_grid *g, int nx, int ny, int nz, lu_error *err) {
 
 void lu_grid_destroy(lu_grid *g) {
     if (!g) return;
-    free(g->data);
+    lu_free(g->data);
     memset(g, 0, sizeof *g);
 }
 
@@ -127,7 +127,7 @@ lu_result lu_grid_apply(lu_grid *g, const int lo[3], const int hi[3], lu_grid_ed
     /* New values go to a scratch box first, so a rejected value leaves the
      * grid as it was. */
     int bx = hi[0] - lo[0], by = hi[1] - lo[1], bz = hi[2] - lo[2];
-    float *box = malloc((size_t)bx * (size_t)by * (size_t)bz * sizeof *box);
+    float *box = lu_malloc((size_t)bx * (size_t)by * (size_t)bz * sizeof *box);
     if (!box) return lu_fail(err, LU_ERR_NOMEM, "lu_grid_apply: out of memory for a %d x %d x %d box", bx, by, bz);
     float old_lo = FLT_MAX, old_hi = -FLT_MAX, new_lo = FLT_MAX, new_hi = -FLT_MAX;
     size_t k = 0;
@@ -138,7 +138,7 @@ lu_result lu_grid_apply(lu_grid *g, const int lo[3], const int hi[3], lu_grid_ed
                 float v = fn(ctx, x, y, z, old);
                 lu_result r = check_value(g, v, x, y, z, "lu_grid_apply", err);
                 if (r != LU_OK) {
-                    free(box);
+                    lu_free(box);
                     return r;
                 }
                 box[k] = v;
@@ -149,7 +149,7 @@ lu_result lu_grid_apply(lu_grid *g, const int lo[3], const int hi[3], lu_grid_ed
     for (int z = lo[2]; z < hi[2]; z++)
         for (int y = lo[1]; y < hi[1]; y++, k += (size_t)bx)
             memcpy(g->data + ((size_t)z * g->ny + y) * g->nx + lo[0], box + k, (size_t)bx * sizeof *box);
-    free(box);
+    lu_free(box);
     /* The range changes locally unless the box held the old extreme and
      * gave it up; only then is the whole grid rescanned. */
     if ((old_hi >= g->max_value && new_hi < old_hi) || (old_lo <= g->min_value && new_lo > old_lo)) {

@@ -94,8 +94,8 @@ typedef struct nvdb_index {
 } nvdb_index;
 
 static void index_free(nvdb_index *ix) {
-    for (size_t i = 0; i < ix->count; i++) free(ix->items[i].name);
-    free(ix->items);
+    for (size_t i = 0; i < ix->count; i++) lu_free(ix->items[i].name);
+    lu_free(ix->items);
     memset(ix, 0, sizeof *ix);
 }
 
@@ -157,7 +157,7 @@ static lu_result scan_container(nvdb_src *s, nvdb_index *ix, lu_error *err) {
             if (r != LU_OK) return r;
             if (ix->count == ix->cap) {
                 size_t cap = ix->cap ? ix->cap * 2 : 4;
-                nvdb_meta *items = realloc(ix->items, cap * sizeof *items);
+                nvdb_meta *items = lu_realloc(ix->items, cap * sizeof *items);
                 if (!items) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory indexing grids", s->label);
                 ix->items = items;
                 ix->cap = cap;
@@ -176,7 +176,7 @@ static lu_result scan_container(nvdb_src *s, nvdb_index *ix, lu_error *err) {
                 return lu_fail(err, LU_ERR_FORMAT, "%s: byte offset %llu: grid name size %u is outside [1, %u]",
                                s->label, (unsigned long long)(off + 136), g->name_size, NVDB_MAX_NAME);
             off += NVDB_META_SIZE;
-            g->name = malloc(g->name_size + 1u);
+            g->name = lu_malloc(g->name_size + 1u);
             if (!g->name) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory reading a grid name", s->label);
             ix->count++;
             r = src_read(s, off, g->name, g->name_size, "a grid name", err);
@@ -269,20 +269,20 @@ static lu_result load_buffer(nvdb_src *s, const nvdb_meta *g, nvdb_buf *b, lu_er
                            "than zlib can produce",
                            s->label, (unsigned long long)g->meta_offset, g->name, (unsigned long long)g->grid_size,
                            (unsigned long long)csize);
-        zbuf = malloc(csize ? (size_t)csize : 1u);
+        zbuf = lu_malloc(csize ? (size_t)csize : 1u);
         if (!zbuf) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory reading %llu compressed bytes", s->label,
                                   (unsigned long long)csize);
         r = src_read(s, g->data_offset + 8, zbuf, csize, "the compressed grid", err);
         if (r != LU_OK) {
-            free(zbuf);
+            lu_free(zbuf);
             return r;
         }
     }
     /* Whole 64-bit words, zero padded: PNanoVDB reads 8 bytes at a time. */
     uint64_t words = (g->grid_size + 7u) / 8u * 2u;
-    b->words = calloc((size_t)words, sizeof(uint32_t));
+    b->words = lu_calloc((size_t)words, sizeof(uint32_t));
     if (!b->words) {
-        free(zbuf);
+        lu_free(zbuf);
         return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for a %llu-byte grid", s->label,
                        (unsigned long long)g->grid_size);
     }
@@ -295,7 +295,7 @@ static lu_result load_buffer(nvdb_src *s, const nvdb_meta *g, nvdb_buf *b, lu_er
         b->compressed = true;
         uLongf out = (uLongf)g->grid_size;
         int zr = uncompress((Bytef *)b->words, &out, zbuf, (uLong)csize);
-        free(zbuf);
+        lu_free(zbuf);
         if (zr != Z_OK || (uint64_t)out != g->grid_size)
             return lu_fail(err, LU_ERR_FORMAT,
                            "%s: byte offset %llu: ZIP data of grid \"%.64s\" does not decompress to its declared %llu "
@@ -682,7 +682,7 @@ static lu_result load_from(nvdb_src *s, const char *grid_name, lu_grid *g, lu_er
     nvdb_buf b;
     r = load_buffer(s, pick, &b, err);
     if (r == LU_OK) r = read_grid(&b, pick, g, err);
-    free(b.words);
+    lu_free(b.words);
     index_free(&ix);
     return r;
 }

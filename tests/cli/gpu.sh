@@ -13,6 +13,10 @@ trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 scene=$src/scenes/smoke_glow.json
 
+# A build without the GPU backend cannot run this: skipped (exit 77), not passed.
+if "$lucent" info --gpu 2>&1 | grep -q "built without GPU support"; then
+  echo "skipped: this lucent was built without the GPU backend"; exit 77
+fi
 "$lucent" info --gpu >"$tmp/info.txt" 2>&1 || { cat "$tmp/info.txt"; fail "info --gpu"; }
 grep -q "^version .*4\.[5-9]" "$tmp/info.txt" || { cat "$tmp/info.txt"; fail "no 4.5 version line"; }
 grep -q "^renderer " "$tmp/info.txt" || fail "no renderer line"

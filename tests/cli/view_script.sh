@@ -19,6 +19,10 @@ fail() { echo "FAIL: $*"; exit 1; }
 export LUCENT_QUIET=1
 # see tests/cli/view.sh: LeakSanitizer's TLS interceptor under make asan
 export ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}intercept_tls_get_addr=0"
+# A build without the viewer cannot run this: skipped (exit 77), not passed.
+if "$lucent" view "$src/scenes/smoke_glow.json" 2>&1 | grep -q "built without the viewer"; then
+  echo "skipped: this lucent was built without the viewer"; exit 77
+fi
 scene=$src/scenes/smoke_glow.json
 cheap=(--method raymarch --set raymarch.steps=32 --size 160x90)
 

@@ -235,15 +235,15 @@ static void append(char *out, size_t out_size, const char *fmt, const char *a, c
     if (len + 1 < out_size) snprintf(out + len, out_size - len, fmt, a, b);
 }
 
-/* LUCENT_GPU narrows an automatic choice (methods create AUTO contexts), so a
- * user can insist on the hardware device or on llvmpipe. */
+/* The host's GPU choice (the CLI's LUCENT_GPU) narrows an automatic choice
+ * (methods create AUTO contexts), so a user can insist on the hardware device
+ * or on llvmpipe. */
 static lu_result env_preference(lu_gpu_device_pref *pref, lu_error *err) {
-    const char *env = getenv("LUCENT_GPU");
-    if (*pref != LU_GPU_AUTO || !env || !*env) return LU_OK;
-    if (strcmp(env, "hardware") == 0) *pref = LU_GPU_HARDWARE;
-    else if (strcmp(env, "software") == 0) *pref = LU_GPU_SOFTWARE;
-    else if (strcmp(env, "auto") != 0)
-        return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: LUCENT_GPU=\"%.40s\" (expected auto, hardware or software)", env);
+    lu_host host;
+    lu_host_get(&host);
+    if (*pref != LU_GPU_AUTO) return LU_OK;
+    if (host.gpu == LU_GPU_CHOICE_HARDWARE) *pref = LU_GPU_HARDWARE;
+    else if (host.gpu == LU_GPU_CHOICE_SOFTWARE) *pref = LU_GPU_SOFTWARE;
     return LU_OK;
 }
 
@@ -285,14 +285,13 @@ static lu_result list_candidates(const char *client, lu_gpu_device_pref pref, ca
     out->enumerated = false;
     out->device_list[0] = '\0';
     int only = -1;
-    const char *dev_env = getenv("LUCENT_GPU_DEVICE");
-    if (dev_env && *dev_env) {
-        char *end;
-        long v = strtol(dev_env, &end, 10);
-        if (*end || v < 0 || v >= LU_GPU_MAX_DEVICES)
-            return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: LUCENT_GPU_DEVICE=\"%.40s\" (expected 0 to %d)", dev_env,
+    lu_host host;
+    lu_host_get(&host);
+    if (host.gpu_device_only) {
+        if (host.gpu_device < 0 || host.gpu_device >= LU_GPU_MAX_DEVICES)
+            return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: device %d (expected 0 to %d)", host.gpu_device,
                            LU_GPU_MAX_DEVICES - 1);
-        only = (int)v;
+        only = host.gpu_device;
     }
     bool can_enumerate = has_ext(client, "EGL_EXT_device_enumeration") || has_ext(client, "EGL_EXT_device_base");
     if (can_enumerate && has_ext(client, "EGL_EXT_platform_device")) {
@@ -374,17 +373,17 @@ static lu_result context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     const char *client = NULL;
     lu_result r = egl_client(&client, err);
     if (r != LU_OK) return r;
-    candidate_list *cands = malloc(sizeof *cands);
-    lu_gpu_context *ctx = calloc(1, sizeof *ctx);
+    candidate_list *cands = lu_malloc(sizeof *cands);
+    lu_gpu_context *ctx = lu_calloc(1, sizeof *ctx);
     if (!cands || !ctx) {
-        free(cands);
-        free(ctx);
+        lu_free(cands);
+        lu_free(ctx);
         return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
     }
     r = list_candidates(client, pref, cands, err);
     if (r != LU_OK) {
-        free(cands);
-        free(ctx);
+        lu_free(cands);
+        lu_free(ctx);
         return r;
     }
     memcpy(ctx->info.device_list, cands->device_list, sizeof ctx->info.device_list);
@@ -402,7 +401,7 @@ static lu_result context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
             if (renderer_is_software(info->renderer)) info->is_software = true;
             info->loop_cap = strstr(info->renderer, "llvmpipe") != NULL;
             info->create_seconds = lu_time_seconds() - t0;
-            free(cands);
+            lu_free(cands);
             *out = ctx;
             return LU_OK;
         }
@@ -412,8 +411,8 @@ static lu_result context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     int ncand = cands->count;
     char device_list[sizeof cands->device_list];
     memcpy(device_list, cands->device_list, sizeof device_list);
-    free(cands);
-    free(ctx);
+    lu_free(cands);
+    lu_free(ctx);
     if (ncand == 0)
         return lu_fail(err, LU_ERR_BACKEND,
                        "gpu: no EGL display: no EGL device for preference %s (devices: %.300s) and no "
@@ -435,14 +434,14 @@ bool lu_gpu_hardware_probe(char *why, size_t why_size) {
         snprintf(why, why_size, "LUCENT_GPU=software");
         return false;
     }
-    candidate_list *cands = malloc(sizeof *cands);
+    candidate_list *cands = lu_malloc(sizeof *cands);
     if (!cands) {
         snprintf(why, why_size, "out of memory");
         return false;
     }
     if (list_candidates(client, LU_GPU_HARDWARE, cands, &err) != LU_OK) {
         snprintf(why, why_size, "%s", err.message);
-        free(cands);
+        lu_free(cands);
         return false;
     }
     /* The probe must leave the caller's EGL state as it was (a viewer's
@@ -473,7 +472,7 @@ bool lu_gpu_hardware_probe(char *why, size_t why_size) {
     if (!found)
         snprintf(why, why_size, "%s%.300s", tried[0] ? "tried " : "EGL devices: ",
                  tried[0] ? tried : cands->device_list);
-    free(cands);
+    lu_free(cands);
     if (cur_ctx != EGL_NO_CONTEXT) {
         eglBindAPI(api);
         eglMakeCurrent(cur_dpy, cur_draw, cur_read, cur_ctx);
@@ -495,7 +494,7 @@ void lu_gpu_context_destroy(lu_gpu_context *ctx) {
     eglDestroyContext(ctx->display, ctx->context);
     /* frees this thread's EGL state once nothing is current on it */
     if (eglGetCurrentContext() == EGL_NO_CONTEXT) eglReleaseThread();
-    free(ctx);
+    lu_free(ctx);
 }
 
 void lu_gpu_info_get(const lu_gpu_context *ctx, lu_gpu_info *out) { *out = ctx->info; }

@@ -19,7 +19,7 @@ static char *info_log(GLuint obj, bool is_program) {
     else glGetShaderiv(obj, GL_INFO_LOG_LENGTH, &len);
     if (len < 1) len = 1;
     if (len > LU_GPU_LOG_MAX) len = LU_GPU_LOG_MAX;
-    char *log = calloc((size_t)len + 1, 1);
+    char *log = lu_calloc((size_t)len + 1, 1);
     if (!log) return NULL;
     if (is_program) glGetProgramInfoLog(obj, len, NULL, log);
     else glGetShaderInfoLog(obj, len, NULL, log);
@@ -39,11 +39,11 @@ lu_result lu_gpu_program_create_ex(lu_gpu_context *ctx, const char *comp_name, c
     lu_result r = lu_gpu_bind_context(ctx, err);
     if (r != LU_OK) return r;
     char *text = NULL;
-    lu_gpu_source_map *map = malloc(sizeof *map);
+    lu_gpu_source_map *map = lu_malloc(sizeof *map);
     if (!map) return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
     r = lu_gpu_assemble(comp_name, defines, overlay, overlay_count, &text, map, err);
     if (r != LU_OK) {
-        free(map);
+        lu_free(map);
         return r;
     }
     const char *main_name = map->count > 1 ? map->names[1] : comp_name;
@@ -56,18 +56,18 @@ lu_result lu_gpu_program_create_ex(lu_gpu_context *ctx, const char *comp_name, c
     glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
     if (!ok) {
         char *log = info_log(sh, false);
-        char *translated = malloc(LU_GPU_LOG_MAX);
+        char *translated = lu_malloc(LU_GPU_LOG_MAX);
         if (log && translated) {
             lu_gpu_translate_log(log, map, translated, LU_GPU_LOG_MAX);
             rstrip(translated);
         }
         r = lu_fail(err, LU_ERR_BACKEND, "%s: GLSL compile failed:\n%s", main_name,
                     translated ? translated : "(out of memory for the info log)");
-        free(log);
-        free(translated);
+        lu_free(log);
+        lu_free(translated);
         glDeleteShader(sh);
-        free(text);
-        free(map);
+        lu_free(text);
+        lu_free(map);
         return r;
     }
     GLuint prog = glCreateProgram();
@@ -75,25 +75,25 @@ lu_result lu_gpu_program_create_ex(lu_gpu_context *ctx, const char *comp_name, c
     glLinkProgram(prog);
     glDetachShader(prog, sh);
     glDeleteShader(sh);
-    free(text);
+    lu_free(text);
     glGetProgramiv(prog, GL_LINK_STATUS, &ok);
     if (!ok) {
         char *log = info_log(prog, true);
-        char *translated = malloc(LU_GPU_LOG_MAX);
+        char *translated = lu_malloc(LU_GPU_LOG_MAX);
         if (log && translated) {
             lu_gpu_translate_log(log, map, translated, LU_GPU_LOG_MAX);
             rstrip(translated);
         }
         r = lu_fail(err, LU_ERR_BACKEND, "%s: GLSL link failed:\n%s", main_name,
                     translated ? translated : "(out of memory for the info log)");
-        free(log);
-        free(translated);
+        lu_free(log);
+        lu_free(translated);
         glDeleteProgram(prog);
-        free(map);
+        lu_free(map);
         return r;
     }
-    free(map);
-    lu_gpu_program *p = calloc(1, sizeof *p);
+    lu_free(map);
+    lu_gpu_program *p = lu_calloc(1, sizeof *p);
     if (!p) {
         glDeleteProgram(prog);
         return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
@@ -118,7 +118,7 @@ lu_result lu_gpu_program_create(lu_gpu_context *ctx, const char *comp_name, cons
 void lu_gpu_program_destroy(lu_gpu_program *prog) {
     if (!prog) return;
     if (lu_gpu_bind_context(prog->ctx, NULL) == LU_OK) glDeleteProgram(prog->id);
-    free(prog);
+    lu_free(prog);
 }
 
 unsigned lu_gpu_program_gl_name(const lu_gpu_program *prog) { return prog->id; }
@@ -181,7 +181,7 @@ lu_result lu_gpu_buffer_create(lu_gpu_context *ctx, size_t bytes, const void *da
     if (r != LU_OK) return r;
     if (bytes == 0 || bytes > (size_t)PTRDIFF_MAX)
         return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: buffer size %zu bytes is invalid", bytes);
-    lu_gpu_buffer *b = calloc(1, sizeof *b);
+    lu_gpu_buffer *b = lu_calloc(1, sizeof *b);
     if (!b) return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
     b->ctx = ctx;
     b->size = bytes;
@@ -203,7 +203,7 @@ lu_result lu_gpu_buffer_create(lu_gpu_context *ctx, size_t bytes, const void *da
 void lu_gpu_buffer_destroy(lu_gpu_buffer *buf) {
     if (!buf) return;
     if (lu_gpu_bind_context(buf->ctx, NULL) == LU_OK) glDeleteBuffers(1, &buf->id);
-    free(buf);
+    lu_free(buf);
 }
 
 size_t lu_gpu_buffer_size(const lu_gpu_buffer *buf) { return buf->size; }
@@ -258,7 +258,7 @@ lu_result lu_gpu_texture3d_create(lu_gpu_context *ctx, int nx, int ny, int nz, c
     if ((unsigned long long)nx * ny * nz > LU_MAX_GRID_VOXELS)
         return lu_fail(err, LU_ERR_LIMIT, "gpu: 3D texture %dx%dx%d exceeds LU_MAX_GRID_VOXELS", nx, ny, nz);
     if (!data) return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: 3D texture without data");
-    lu_gpu_texture *t = calloc(1, sizeof *t);
+    lu_gpu_texture *t = lu_calloc(1, sizeof *t);
     if (!t) return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
     t->ctx = ctx;
     t->target = GL_TEXTURE_3D;
@@ -304,7 +304,7 @@ lu_result lu_gpu_image2d_create(lu_gpu_context *ctx, int width, int height, lu_g
     if (r != LU_OK) return r;
     if (width < 1 || height < 1 || width > LU_MAX_IMAGE_DIM || height > LU_MAX_IMAGE_DIM)
         return lu_fail(err, LU_ERR_LIMIT, "gpu: image %dx%d outside [1, %d]", width, height, LU_MAX_IMAGE_DIM);
-    lu_gpu_texture *t = calloc(1, sizeof *t);
+    lu_gpu_texture *t = lu_calloc(1, sizeof *t);
     if (!t) return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
     t->ctx = ctx;
     t->target = GL_TEXTURE_2D;
@@ -339,7 +339,7 @@ lu_result lu_gpu_image2d_download(lu_gpu_texture *tex, float *rgba, lu_error *er
 void lu_gpu_texture_destroy(lu_gpu_texture *tex) {
     if (!tex) return;
     if (lu_gpu_bind_context(tex->ctx, NULL) == LU_OK) glDeleteTextures(1, &tex->id);
-    free(tex);
+    lu_free(tex);
 }
 
 lu_result lu_gpu_texture_bind(lu_gpu_texture *tex, int unit, lu_error *err) {

@@ -44,7 +44,7 @@ static void sb_put(sbuf *b, const char *s, size_t n) {
     if (b->len + n + 1 > b->cap) {
         size_t cap = b->cap ? b->cap : 4096;
         while (cap < b->len + n + 1) cap *= 2;
-        char *q = realloc(b->p, cap);
+        char *q = lu_realloc(b->p, cap);
         if (!q) {
             b->failed = true;
             return;
@@ -272,7 +272,7 @@ lu_result lu_gpu_assemble(const char *main_name, const char *defines, const lu_g
         r = lu_fail(err, LU_ERR_LIMIT, "%s: assembled shader too large or out of memory (limit %u bytes)",
                     main_name, LU_GPU_MAX_SOURCE_BYTES);
     if (r != LU_OK) {
-        free(st.out.p);
+        lu_free(st.out.p);
         return r;
     }
     *out_text = st.out.p;

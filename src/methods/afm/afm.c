@@ -117,11 +117,11 @@ void lu_afm_map_init(lu_afm_map *map, const lu_scene *scene, int res, int coefs,
 }
 
 void lu_afm_map_free(lu_afm_map *map) {
-    free(map->views);
-    free(map->views_packed);
-    free(map->view_table);
-    free(map->lspans);
-    free(map->records);
+    lu_free(map->views);
+    lu_free(map->views_packed);
+    lu_free(map->view_table);
+    lu_free(map->lspans);
+    lu_free(map->records);
     memset(map, 0, sizeof *map);
 }
 
@@ -186,14 +186,14 @@ lu_result lu_afm_map_views(lu_afm_map *map, const lu_frame *f, const lu_media_ra
         if (r != LU_OK || !old_table || nl != map->nl || old_count != map->view_count ||
             memcmp(old_table, map->view_table, (size_t)nl * 2 * sizeof *old_table) != 0)
             views = ~0ull;
-        free(old_table);
+        lu_free(old_table);
         if (r != LU_OK) return r;
         size_t texels = lu_afm_map_texels(map);
         if (map->bounded) {
             size_t ls = (texels ? texels : 1u) * (size_t)map->nm * LU_AFM_LSPAN_FLOATS;
             if (ls > map->lspans_cap) {
-                free(map->lspans);
-                map->lspans = malloc(ls * sizeof(float));
+                lu_free(map->lspans);
+                map->lspans = lu_malloc(ls * sizeof(float));
                 map->lspans_cap = map->lspans ? ls : 0;
                 if (!map->lspans) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for light-ray spans");
                 views = ~0ull;    /* a new buffer keeps nothing */
@@ -252,8 +252,8 @@ lu_result lu_afm_map_build_cpu(lu_afm_map *map, const lu_scene *scene, const lu_
     size_t texels = lu_afm_map_texels(map);
     size_t need = (texels ? texels : 1u) * (size_t)lu_afm_map_stride(map);
     if (need > map->records_cap) {
-        free(map->records);
-        map->records = malloc(need * sizeof(float));
+        lu_free(map->records);
+        map->records = lu_malloc(need * sizeof(float));
         map->records_cap = map->records ? need : 0;
         if (!map->records) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory for %zu map texels", texels);
         /* nothing is kept in a new buffer (the stage rebuilds everything
@@ -326,13 +326,13 @@ static void afm_destroy(void *state) {
     lu_afm_gpu_destroy(st->gpu);
     lu_media_rays_free(&st->mr);
     lu_afm_map_free(&st->map);
-    free(st->surfaces);
-    free(st);
+    lu_free(st->surfaces);
+    lu_free(st);
 }
 
 static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                              lu_error *err) {
-    afm_state *st = calloc(1, sizeof *st);
+    afm_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
     st->backend = backend;
     st->steps = (int)params[P_STEPS];
@@ -358,7 +358,7 @@ static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_bac
     st->eps = lu_scene_ray_epsilon(scene);
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, (int)params[P_SHADOW_RES], true, err);
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
-    st->surfaces = calloc(nm * LU_AFM_SURFACE_FLOATS, sizeof(float));
+    st->surfaces = lu_calloc(nm * LU_AFM_SURFACE_FLOATS, sizeof(float));
     if (!st->surfaces && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_afm_gpu_create(scene, &st->gpu, err);
     if (r == LU_OK && backend == LU_BACKEND_GPU) {

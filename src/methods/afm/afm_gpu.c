@@ -28,7 +28,7 @@ struct lu_afm_gpu {
 
 lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *err) {
     *out = NULL;
-    lu_afm_gpu *g = calloc(1, sizeof *g);
+    lu_afm_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
     lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
     if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/afm/afm_build.comp", NULL, &g->build, err);
@@ -50,7 +50,7 @@ void lu_afm_gpu_destroy(lu_afm_gpu *g) {
     lu_gpu_program_destroy(g->build);
     lu_gpu_program_destroy(g->render);
     lu_gpu_context_destroy(g->ctx);
-    free(g);
+    lu_free(g);
 }
 
 size_t lu_afm_gpu_limits(const lu_afm_gpu *g, bool *loop_cap) {

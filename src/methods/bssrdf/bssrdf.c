@@ -310,29 +310,29 @@ static void bssrdf_destroy(void *state) {
     for (int i = 0; i < st->tcount; i++) {
         lu_bssrdf_profile_destroy(&st->t[i].prof);
         if (st->t[i].own) lu_accel_destroy(st->t[i].own);
-        free(st->t[i].env);
+        lu_free(st->t[i].env);
     }
     if (st->maps)
         for (int v = 0; v < st->view_count; v++) {
-            free(st->maps[v].tex);
-            free(st->maps[v].roi);
+            lu_free(st->maps[v].tex);
+            lu_free(st->maps[v].roi);
         }
-    free(st->maps);
-    free(st->t);
-    free(st->tindex);
-    free(st->table);
-    free(st->materials);
-    free(st->lights);
-    free(st->views);
-    free(st->env);
-    free(st->shadow);
-    free(st->splats);
-    for (int l = 0; l < st->slot_count; l++) free(st->slots[l].splats);
-    free(st->slots);
-    free(st->gbuf);
+    lu_free(st->maps);
+    lu_free(st->t);
+    lu_free(st->tindex);
+    lu_free(st->table);
+    lu_free(st->materials);
+    lu_free(st->lights);
+    lu_free(st->views);
+    lu_free(st->env);
+    lu_free(st->shadow);
+    lu_free(st->splats);
+    for (int l = 0; l < st->slot_count; l++) lu_free(st->slots[l].splats);
+    lu_free(st->slots);
+    lu_free(st->gbuf);
     lu_tile_bins_free(&st->bins);
-    free(st->rects);
-    free(st);
+    lu_free(st->rects);
+    lu_free(st);
 }
 
 static lu_bssrdf_profile_desc profile_desc(const bssrdf_state *st) {
@@ -418,7 +418,7 @@ static lu_result prepare_env_samples(bssrdf_state *st, const lu_scene *scene, to
         r = lu_surface_relax(mesh, &pts, radius, st->p[P_RELAX_STEP], (int)st->p[P_RELAX_ITERS], st->p[P_RELAX_TOL],
                              &t->relax, err);
     if (r == LU_OK) {
-        t->env = calloc((size_t)n, sizeof *t->env);
+        t->env = lu_calloc((size_t)n, sizeof *t->env);
         if (!t->env) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for %lld environment samples", n);
     }
     if (r == LU_OK) {
@@ -463,9 +463,9 @@ static lu_result fill_env(bssrdf_state *st, const lu_scene *scene, double Lsum[2
                        (LU_K_BSSRDF_SCENE_FLOATS - LU_K_BSSRDF_SCENE_ENV_INFO) / 4);
     size_t floats = 3 * (env_texels ? env_texels : 1);
     if (floats != st->env_floats || !st->env) {
-        free(st->env);
+        lu_free(st->env);
         st->env_floats = 0;
-        st->env = calloc(floats, sizeof *st->env);
+        st->env = lu_calloc(floats, sizeof *st->env);
         if (!st->env) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the environment maps");
         st->env_floats = floats;
     }
@@ -503,7 +503,7 @@ static lu_result fill_env(bssrdf_state *st, const lu_scene *scene, double Lsum[2
 
 static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                                 lu_error *err) {
-    bssrdf_state *st = calloc(1, sizeof *st);
+    bssrdf_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     memcpy(st->p, params, sizeof st->p);
     st->backend = backend;
@@ -515,7 +515,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
 
     st->eps = lu_scene_ray_epsilon(scene);
     st->objects_box = lu_aabb_empty();
-    st->tindex = malloc((size_t)(scene->object_count ? scene->object_count : 1) * sizeof *st->tindex);
+    st->tindex = lu_malloc((size_t)(scene->object_count ? scene->object_count : 1) * sizeof *st->tindex);
     if (!st->tindex && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     for (int i = 0; i < scene->object_count && r == LU_OK; i++) {
         st->tindex[i] = scene->objects[i].material.type == LU_MATERIAL_TRANSLUCENT ? st->tcount++ : -1;
@@ -532,7 +532,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
         if (r == LU_OK) r = lu_accel_commit(st->all, err);
     }
     if (r == LU_OK && st->tcount) {
-        st->t = calloc((size_t)st->tcount, sizeof *st->t);
+        st->t = lu_calloc((size_t)st->tcount, sizeof *st->t);
         if (!st->t) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     }
     /* Profiles, one table per translucent object. */
@@ -568,8 +568,8 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
     }
     if (r == LU_OK) {
         st->table_floats = 3 * (entries ? entries : 1);
-        st->table = calloc(st->table_floats, sizeof *st->table);
-        st->materials = calloc((size_t)(scene->object_count ? scene->object_count : 1) * LU_K_BSSRDF_MAT_FLOATS,
+        st->table = lu_calloc(st->table_floats, sizeof *st->table);
+        st->materials = lu_calloc((size_t)(scene->object_count ? scene->object_count : 1) * LU_K_BSSRDF_MAT_FLOATS,
                                sizeof *st->materials);
         if (!st->table || !st->materials) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     }
@@ -595,7 +595,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
         r = prepare_env_samples(st, scene, &st->t[i], Lsum, err);
         if (r == LU_OK && st->p[P_STATS] != 0.0) {
             const lu_relax_stats *rs = &st->t[i].relax;
-            fprintf(stderr,
+            lu_log_msg(LU_LOG_INFO,
                     "bssrdf: object %d: %d environment samples, relaxation %d iterations (%s, last RMS move %.2e r) in "
                     "%.2f s, nearest-neighbour CV %.3f -> %.3f\n",
                     st->t[i].object, st->t[i].env_count, rs->iterations, rs->converged ? "converged" : "not converged",
@@ -606,7 +606,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_bssrdf_gpu_create(&st->gpu, err);
     if (r == LU_OK && st->p[P_STATS] != 0.0)
         for (int i = 0; i < st->tcount; i++)
-            fprintf(stderr,
+            lu_log_msg(LU_LOG_INFO,
                     "bssrdf: object %d: %s profile, %dx%d table, r_max %.4g (T: %.4g up to d = %.4g) scene units, "
                     "mfp %.4g\n",
                     st->t[i].object, st->t[i].prof.kind ? "2D" : "1D", st->t[i].prof.nr, st->t[i].prof.nd,
@@ -712,7 +712,7 @@ static lu_result grow(void **p, size_t *cap, size_t need, size_t elem, lu_error 
     if (need <= *cap) return LU_OK;
     size_t n = *cap ? *cap : 1024;
     while (n < need) n *= 2;
-    void *q = realloc(*p, n * elem);
+    void *q = lu_realloc(*p, n * elem);
     if (!q) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory (%zu bytes)", n * elem);
     *p = q;
     *cap = n;
@@ -729,7 +729,7 @@ static lu_result cast_view(bssrdf_state *st, const lu_scene *scene, int vi, lslo
     int rect[4];
     if (!lu_aabb_valid(st->objects_box) || !project_box(&m->view, st->objects_box, res, rect)) return LU_OK;
     m->x0 = rect[0], m->y0 = rect[1], m->x1 = rect[2], m->y1 = rect[3];
-    m->tex = malloc((size_t)(m->x1 - m->x0) * (m->y1 - m->y0) * sizeof *m->tex);
+    m->tex = lu_malloc((size_t)(m->x1 - m->x0) * (m->y1 - m->y0) * sizeof *m->tex);
     if (!m->tex) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for a light-space map");
     cast_job j = {st, scene, m, depth, res};
     lu_parallel_for(m->y1 - m->y0, 4, cast_rows, &j, NULL);
@@ -737,7 +737,7 @@ static lu_result cast_view(bssrdf_state *st, const lu_scene *scene, int vi, lslo
     /* Regions of interest: where each translucent object shows in the map
      * (tighter than the projected bounding box of the thesis, and exact
      * for cube faces the box straddles). */
-    m->roi = malloc((size_t)(st->tcount ? st->tcount : 1) * 4 * sizeof *m->roi);
+    m->roi = lu_malloc((size_t)(st->tcount ? st->tcount : 1) * 4 * sizeof *m->roi);
     if (!m->roi) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     for (int t = 0; t < st->tcount; t++) {
         m->roi[4 * t] = m->roi[4 * t + 1] = INT32_MAX;
@@ -759,10 +759,10 @@ static lu_result cast_view(bssrdf_state *st, const lu_scene *scene, int vi, lslo
 static void free_maps(bssrdf_state *st) {
     if (st->maps)
         for (int v = 0; v < st->view_count; v++) {
-            free(st->maps[v].tex);
-            free(st->maps[v].roi);
+            lu_free(st->maps[v].tex);
+            lu_free(st->maps[v].roi);
         }
-    free(st->maps);
+    lu_free(st->maps);
     st->maps = NULL;
 }
 
@@ -794,8 +794,8 @@ static lu_result build_light(bssrdf_state *st, const lu_frame *f, int l, const l
         V[8] = v->axis_v.x, V[9] = v->axis_v.y, V[10] = v->axis_v.z, V[11] = v->extent_v;
         V[12] = v->axis_w.x, V[13] = v->axis_w.y, V[14] = v->axis_w.z, V[15] = v->depth_far;
         lmap *m = &st->maps[vi];
-        free(m->tex);
-        free(m->roi);
+        lu_free(m->tex);
+        lu_free(m->roi);
         memset(m, 0, sizeof *m);
         m->view = *v;
         m->light = l;
@@ -829,18 +829,18 @@ static lu_result build_lights(bssrdf_state *st, const lu_frame *f, bool redo[64]
     st->lights_valid = false;
     if (all) {
         free_maps(st);
-        free(st->lights);
-        free(st->views);
+        lu_free(st->lights);
+        lu_free(st->views);
         st->light_count = scene->light_count;
         st->view_count = 0;
         size_t nl = scene->light_count > 0 ? (size_t)scene->light_count : 1u;
-        st->lights = calloc(nl * LU_K_BSSRDF_LIGHT_FLOATS, sizeof(float));
+        st->lights = lu_calloc(nl * LU_K_BSSRDF_LIGHT_FLOATS, sizeof(float));
         size_t nv = total > 0 ? (size_t)total : 1u;
-        st->views = calloc(nv * LU_K_BSSRDF_VIEW_FLOATS, sizeof(float));
-        st->maps = calloc(nv, sizeof *st->maps);
+        st->views = lu_calloc(nv * LU_K_BSSRDF_VIEW_FLOATS, sizeof(float));
+        st->maps = lu_calloc(nv, sizeof *st->maps);
         if (!st->lights || !st->views || !st->maps) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
         if ((int)nl > st->slot_count) {
-            lslot *sl = realloc(st->slots, nl * sizeof *sl);
+            lslot *sl = lu_realloc(st->slots, nl * sizeof *sl);
             if (!sl) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
             memset(sl + st->slot_count, 0, (nl - (size_t)st->slot_count) * sizeof *sl);
             st->slots = sl;
@@ -1172,7 +1172,7 @@ static lu_result update_env(bssrdf_state *st, const lu_frame *f, bool *changed, 
         if (envs > 0 && t->env) env_flux(t, L);
         else if (envs > 0) r = prepare_env_samples(st, scene, t, L, err);
         else {
-            free(t->env);
+            lu_free(t->env);
             t->env = NULL;
             t->env_count = 0;
         }
@@ -1282,7 +1282,7 @@ static lu_result bssrdf_render(void *state, const lu_frame *frame, lu_image *out
     st->stats.ms_binning = 1e3 * (t4 - t3);
     st->stats.ms_splat = 1e3 * (t5 - t4);
     if (st->p[P_STATS] != 0.0)
-        fprintf(stderr,
+        lu_log_msg(LU_LOG_INFO,
                 "bssrdf: frame %dx%d (%s): maps %.1f ms (%lld texels), samples %.1f ms (%d splats, %d environment), "
                 "G-buffer %.1f ms, binning %.1f ms (%lld splat-tile pairs), splat+shade %.1f ms; processor time %.1f ms\n",
                 c->width, c->height, lu_backend_name(st->backend), st->stats.ms_maps, st->stats.map_texels,

@@ -26,7 +26,7 @@ struct lu_bssrdf_gpu {
 
 lu_result lu_bssrdf_gpu_create(lu_bssrdf_gpu **out, lu_error *err) {
     *out = NULL;
-    lu_bssrdf_gpu *g = calloc(1, sizeof *g);
+    lu_bssrdf_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
     if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/bssrdf/bssrdf.comp", NULL, &g->prog, err);
@@ -43,8 +43,8 @@ void lu_bssrdf_gpu_destroy(lu_bssrdf_gpu *g) {
     for (int i = 0; i < B_COUNT; i++) lu_gpu_buffer_destroy(g->buf[i]);
     lu_gpu_program_destroy(g->prog);
     lu_gpu_context_destroy(g->ctx);
-    free(g->staging);
-    free(g);
+    lu_free(g->staging);
+    lu_free(g);
 }
 
 /* Uploads into buffer slot i, growing it when needed; binds it at i.
@@ -82,7 +82,7 @@ lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, l
                      memcmp(off, g->off, sizeof off) == 0;
     if (!keep_data) {
         if (total > g->staging_cap) {
-            float *s = realloc(g->staging, total * sizeof *s);
+            float *s = lu_realloc(g->staging, total * sizeof *s);
             if (!s) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
             g->staging = s;
             g->staging_cap = total;

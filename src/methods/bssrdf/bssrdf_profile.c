@@ -23,7 +23,7 @@ void lu_bssrdf_profile_desc_default(lu_bssrdf_profile_desc *d) {
 
 void lu_bssrdf_profile_destroy(lu_bssrdf_profile *p) {
     if (!p) return;
-    free(p->table);
+    lu_free(p->table);
     memset(p, 0, sizeof *p);
 }
 
@@ -60,7 +60,7 @@ static double eps_radius_ref(lu_bssrdf_radial_fn f, const void *ctx, double r_lo
     if (n < 2) n = 2;
     if (n & 1) n++;
     double t0 = log(r_lo), t1 = log(r_hi), h = (t1 - t0) / n;
-    double *cum = malloc((size_t)(n / 2 + 1) * sizeof *cum);
+    double *cum = lu_malloc((size_t)(n / 2 + 1) * sizeof *cum);
     if (!cum) {
         *total = 0.0;
         return r_hi;
@@ -84,7 +84,7 @@ static double eps_radius_ref(lu_bssrdf_radial_fn f, const void *ctx, double r_lo
             break;
         }
     }
-    free(cum);
+    lu_free(cum);
     return r_max;
 }
 
@@ -255,7 +255,7 @@ static lu_result build_1d(const lu_bssrdf_layer *layer, const lu_bssrdf_profile_
     p->nr = desc->table_size;
     p->nd = 1;
     p->r_max = (float)r_max;
-    p->table = malloc((size_t)3 * p->nr * sizeof *p->table);
+    p->table = lu_malloc((size_t)3 * p->nr * sizeof *p->table);
     if (!p->table) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the profile table");
     for (int i = 0; i < p->nr; i++) {
         for (int c = 0; c < 3; c++) {
@@ -315,7 +315,7 @@ static lu_result build_multipole(const lu_bssrdf_layer *layer, const lu_bssrdf_p
     }
     p->r_max = (float)r_max;
     p->r_max_t = (float)(r_max_t > 0.0 ? r_max_t : r_max);
-    p->table = malloc((size_t)6 * p->nr * p->nd * sizeof *p->table);
+    p->table = lu_malloc((size_t)6 * p->nr * p->nd * sizeof *p->table);
     if (!p->table) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the profile tables");
     for (int t = 0; t < 2; t++) {
         ctx.transmit = t;
@@ -352,13 +352,13 @@ enum { S_RTOP, S_RBOTTOM, S_TDOWN, S_TUP };
 void lu_bssrdf_spectra_destroy(lu_bssrdf_spectra *s) {
     if (!s) return;
     for (int i = 0; i < 4; i++) fftwf_free(s->c[i]);
-    free(s);
+    lu_free(s);
 }
 
 static lu_result spectra_alloc(int g, double h, lu_bssrdf_spectra **out, lu_error *err) {
     *out = NULL;
     if (g < 8 || g > 8192 || (g & 1)) return lu_fail(err, LU_ERR_RANGE, "bssrdf: FFT size %d must be even, in [8, 8192]", g);
-    lu_bssrdf_spectra *s = calloc(1, sizeof *s);
+    lu_bssrdf_spectra *s = lu_calloc(1, sizeof *s);
     if (!s) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     s->g = g;
     s->h = h;
@@ -600,10 +600,10 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
     double drad = 1.5 * r_ext / (nrad - 1);
     int nline = g / 2 + 1;              /* extracted line: r_k = k h, k < nline */
 
-    float *rad_r = malloc((size_t)nrad * sizeof(float)), *rad_rb = malloc((size_t)nrad * sizeof(float));
-    float *rad_t = malloc((size_t)nrad * sizeof(float)), *rad_tu = malloc((size_t)nrad * sizeof(float));
-    float *lines = malloc((size_t)2 * 3 * p->nd * nline * sizeof(float)); /* [t][c][j][k] */
-    double *dc = malloc((size_t)2 * 3 * p->nd * sizeof(double));            /* [t][c][j]: exact totals */
+    float *rad_r = lu_malloc((size_t)nrad * sizeof(float)), *rad_rb = lu_malloc((size_t)nrad * sizeof(float));
+    float *rad_t = lu_malloc((size_t)nrad * sizeof(float)), *rad_tu = lu_malloc((size_t)nrad * sizeof(float));
+    float *lines = lu_malloc((size_t)2 * 3 * p->nd * nline * sizeof(float)); /* [t][c][j][k] */
+    double *dc = lu_malloc((size_t)2 * 3 * p->nd * sizeof(double));            /* [t][c][j]: exact totals */
     lu_bssrdf_spectra *coats[3][LU_MAX_COATINGS] = {{0}};
     lu_result r = LU_OK;
     if (!rad_r || !rad_rb || !rad_t || !rad_tu || !lines || !dc) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
@@ -675,7 +675,7 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
         if (r_max <= 0.0) r_max = reach;
         p->r_max = (float)r_max;
         p->r_max_t = (float)(r_max_t > 0.0 ? r_max_t : r_max);
-        p->table = malloc((size_t)6 * p->nr * p->nd * sizeof *p->table);
+        p->table = lu_malloc((size_t)6 * p->nr * p->nd * sizeof *p->table);
         if (!p->table) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the profile tables");
     }
     if (r == LU_OK) {
@@ -710,12 +710,12 @@ static lu_result build_layers(const lu_bssrdf_layer *layers, int count, const lu
             p->total_closed[c] = NAN;  /* no closed form for a stack */
         }
     }
-    free(rad_r);
-    free(rad_rb);
-    free(rad_t);
-    free(rad_tu);
-    free(lines);
-    free(dc);
+    lu_free(rad_r);
+    lu_free(rad_rb);
+    lu_free(rad_t);
+    lu_free(rad_tu);
+    lu_free(lines);
+    lu_free(dc);
     return r;
 }
 
@@ -745,7 +745,7 @@ static void prefilter_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     prefilter_job *j = ctx;
     lu_bssrdf_profile *p = j->p;
     int rows_per_level = (int)(j->level_entries / p->nr);
-    double *cum = malloc((size_t)3 * p->nr * sizeof *cum);
+    double *cum = lu_malloc((size_t)3 * p->nr * sizeof *cum);
     if (!cum) return;
     for (int64_t row = begin; row < end; row++) {
         const float *src = p->table + (size_t)row * 3 * p->nr;
@@ -794,14 +794,14 @@ static void prefilter_rows(void *ctx, int64_t begin, int64_t end, int thread) {
             }
         }
     }
-    free(cum);
+    lu_free(cum);
 }
 
 lu_result lu_bssrdf_profile_prefilter(lu_bssrdf_profile *p, int levels, float rho0, lu_error *err) {
     if (levels <= 1 || p->levels != 1) return LU_OK;
     if (!(rho0 > 0.0f)) return lu_fail(err, LU_ERR_RANGE, "bssrdf: prefilter radius must be > 0");
     size_t per = lu_bssrdf_profile_level_entries(p);
-    float *t = realloc(p->table, (size_t)levels * per * 3 * sizeof *t);
+    float *t = lu_realloc(p->table, (size_t)levels * per * 3 * sizeof *t);
     if (!t) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for %d profile levels", levels);
     p->table = t;
     p->levels = levels;

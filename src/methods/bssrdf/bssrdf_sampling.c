@@ -8,9 +8,9 @@
 
 void lu_surface_points_destroy(lu_surface_points *p) {
     if (!p) return;
-    free(p->position);
-    free(p->normal);
-    free(p->triangle);
+    lu_free(p->position);
+    lu_free(p->normal);
+    lu_free(p->triangle);
     memset(p, 0, sizeof *p);
 }
 
@@ -54,9 +54,9 @@ static lu_vec3 face_normal(const lu_mesh *m, uint32_t t) {
 
 static lu_result points_alloc(lu_surface_points *p, int count, lu_error *err) {
     memset(p, 0, sizeof *p);
-    p->position = malloc((size_t)(count ? count : 1) * sizeof *p->position);
-    p->normal = malloc((size_t)(count ? count : 1) * sizeof *p->normal);
-    p->triangle = malloc((size_t)(count ? count : 1) * sizeof *p->triangle);
+    p->position = lu_malloc((size_t)(count ? count : 1) * sizeof *p->position);
+    p->normal = lu_malloc((size_t)(count ? count : 1) * sizeof *p->normal);
+    p->triangle = lu_malloc((size_t)(count ? count : 1) * sizeof *p->triangle);
     if (!p->position || !p->normal || !p->triangle) {
         lu_surface_points_destroy(p);
         return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for %d surface points", count);
@@ -68,7 +68,7 @@ static lu_result points_alloc(lu_surface_points *p, int count, lu_error *err) {
 lu_result lu_surface_sample(const lu_mesh *mesh, int count, uint64_t seed, lu_surface_points *out, lu_error *err) {
     memset(out, 0, sizeof *out);
     if (count < 1 || mesh->triangle_count == 0) return lu_fail(err, LU_ERR_RANGE, "bssrdf: nothing to sample");
-    double *cdf = malloc(mesh->triangle_count * sizeof *cdf);
+    double *cdf = lu_malloc(mesh->triangle_count * sizeof *cdf);
     if (!cdf) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     double acc = 0.0;
     for (uint32_t t = 0; t < mesh->triangle_count; t++) {
@@ -78,12 +78,12 @@ lu_result lu_surface_sample(const lu_mesh *mesh, int count, uint64_t seed, lu_su
         cdf[t] = acc;
     }
     if (!(acc > 0.0)) {
-        free(cdf);
+        lu_free(cdf);
         return lu_fail(err, LU_ERR_RANGE, "bssrdf: mesh has no area to sample");
     }
     lu_result r = points_alloc(out, count, err);
     if (r != LU_OK) {
-        free(cdf);
+        lu_free(cdf);
         return r;
     }
     uint64_t s = seed * 0x2545F4914F6CDD1Dull + 7;
@@ -104,7 +104,7 @@ lu_result lu_surface_sample(const lu_mesh *mesh, int count, uint64_t seed, lu_su
         out->normal[i] = interp_normal(mesh, lo, l);
         out->triangle[i] = lo;
     }
-    free(cdf);
+    lu_free(cdf);
     return LU_OK;
 }
 
@@ -138,15 +138,15 @@ static int cmp_vkey(const void *a, const void *b) {
  * and e+1), or UINT32_MAX on a border or a non-manifold edge. */
 static lu_result build_adjacency(const lu_mesh *m, uint32_t **out, lu_error *err) {
     uint32_t nt = m->triangle_count, nv = m->vertex_count;
-    uint32_t *weld = malloc((size_t)nv * sizeof *weld);
-    vkey *vk = malloc((size_t)nv * sizeof *vk);
-    edge_rec *e = malloc((size_t)3 * nt * sizeof *e);
-    uint32_t *nb = malloc((size_t)3 * nt * sizeof *nb);
+    uint32_t *weld = lu_malloc((size_t)nv * sizeof *weld);
+    vkey *vk = lu_malloc((size_t)nv * sizeof *vk);
+    edge_rec *e = lu_malloc((size_t)3 * nt * sizeof *e);
+    uint32_t *nb = lu_malloc((size_t)3 * nt * sizeof *nb);
     if (!weld || !vk || !e || !nb) {
-        free(weld);
-        free(vk);
-        free(e);
-        free(nb);
+        lu_free(weld);
+        lu_free(vk);
+        lu_free(e);
+        lu_free(nb);
         return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for mesh adjacency");
     }
     for (uint32_t i = 0; i < nv; i++) vk[i] = (vkey){m->positions[i], i};
@@ -169,9 +169,9 @@ static lu_result build_adjacency(const lu_mesh *m, uint32_t **out, lu_error *err
         }
         i = j;
     }
-    free(weld);
-    free(vk);
-    free(e);
+    lu_free(weld);
+    lu_free(vk);
+    lu_free(e);
     *out = nb;
     return LU_OK;
 }
@@ -269,8 +269,8 @@ typedef struct pgrid {
 } pgrid;
 
 static void pgrid_free(pgrid *g) {
-    free(g->start);
-    free(g->items);
+    lu_free(g->start);
+    lu_free(g->items);
     memset(g, 0, sizeof *g);
 }
 
@@ -298,11 +298,11 @@ static lu_result pgrid_build(pgrid *g, const lu_surface_points *pts, double cell
     g->ny = (int)(ext.y / g->cell) + 1;
     g->nz = (int)(ext.z / g->cell) + 1;
     size_t ncell = (size_t)g->nx * g->ny * g->nz;
-    g->start = calloc(ncell + 1, sizeof *g->start);
-    g->items = malloc((size_t)(pts->count ? pts->count : 1) * sizeof *g->items);
-    int *cellof = malloc((size_t)(pts->count ? pts->count : 1) * sizeof *cellof);
+    g->start = lu_calloc(ncell + 1, sizeof *g->start);
+    g->items = lu_malloc((size_t)(pts->count ? pts->count : 1) * sizeof *g->items);
+    int *cellof = lu_malloc((size_t)(pts->count ? pts->count : 1) * sizeof *cellof);
     if (!g->start || !g->items || !cellof) {
-        free(cellof);
+        lu_free(cellof);
         pgrid_free(g);
         return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the point grid");
     }
@@ -312,16 +312,16 @@ static lu_result pgrid_build(pgrid *g, const lu_surface_points *pts, double cell
         g->start[cellof[i] + 1]++;
     }
     for (size_t c = 0; c < ncell; c++) g->start[c + 1] += g->start[c];
-    int *fill = malloc(ncell * sizeof *fill);
+    int *fill = lu_malloc(ncell * sizeof *fill);
     if (!fill) {
-        free(cellof);
+        lu_free(cellof);
         pgrid_free(g);
         return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the point grid");
     }
     memcpy(fill, g->start, ncell * sizeof *fill);
     for (int i = 0; i < pts->count; i++) g->items[fill[cellof[i]]++] = i;
-    free(fill);
-    free(cellof);
+    lu_free(fill);
+    lu_free(cellof);
     return LU_OK;
 }
 
@@ -430,9 +430,9 @@ void lu_surface_nn_stats(const lu_surface_points *pts, double search, double *me
     *mean = *cv = 0.0;
     if (pts->count < 2) return;
     pgrid g;
-    double *nn = malloc((size_t)pts->count * sizeof *nn);
+    double *nn = lu_malloc((size_t)pts->count * sizeof *nn);
     if (!nn || pgrid_build(&g, pts, search, NULL) != LU_OK) {
-        free(nn);
+        lu_free(nn);
         return;
     }
     nn_job j = {pts, &g, search, nn};
@@ -444,7 +444,7 @@ void lu_surface_nn_stats(const lu_surface_points *pts, double search, double *me
     }
     *mean = s / pts->count;
     *cv = sqrt(fmax(0.0, s2 / pts->count - *mean * *mean)) / *mean;
-    free(nn);
+    lu_free(nn);
     pgrid_free(&g);
 }
 
@@ -457,8 +457,8 @@ lu_result lu_surface_relax(const lu_mesh *mesh, lu_surface_points *pts, double r
     uint32_t *nb = NULL;
     lu_result r = build_adjacency(mesh, &nb, err);
     if (r != LU_OK) return r;
-    lu_vec3 *force = malloc((size_t)pts->count * sizeof *force);
-    double *moved2 = malloc((size_t)pts->count * sizeof *moved2);
+    lu_vec3 *force = lu_malloc((size_t)pts->count * sizeof *force);
+    double *moved2 = lu_malloc((size_t)pts->count * sizeof *moved2);
     if (!force || !moved2) r = lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     /* "Until uniform" (thesis listing 5.11): the nearest-neighbour spread has
      * stopped improving (by less than tol, relative, over the last 5
@@ -488,9 +488,9 @@ lu_result lu_surface_relax(const lu_mesh *mesh, lu_surface_points *pts, double r
             break;
         }
     }
-    free(force);
-    free(moved2);
-    free(nb);
+    lu_free(force);
+    lu_free(moved2);
+    lu_free(nb);
     lu_surface_nn_stats(pts, 2.0 * radius, &stats->nn_mean_after, &stats->nn_cv_after);
     stats->seconds = lu_time_seconds() - t0;
     return r;

@@ -114,13 +114,13 @@ lu_result lu_bssrdf_mc_slab(double sigma_sp, double sigma_a, double eta, double 
         !(eta >= 1.0))
         return lu_fail(err, LU_ERR_RANGE, "bssrdf: invalid Monte Carlo settings");
     mc_job j = {sigma_sp + sigma_a, sigma_sp / (sigma_sp + sigma_a), eta, thickness, paths, seed, bins, dr, NULL};
-    j.tally = calloc((size_t)MC_CHUNKS * TALLY(bins), sizeof(double));
-    out->r_profile = calloc((size_t)bins, sizeof(double));
-    out->t_profile = calloc((size_t)bins, sizeof(double));
-    out->r_multiple = calloc((size_t)bins, sizeof(double));
-    out->r_profile_stderr = calloc((size_t)bins, sizeof(double));
+    j.tally = lu_calloc((size_t)MC_CHUNKS * TALLY(bins), sizeof(double));
+    out->r_profile = lu_calloc((size_t)bins, sizeof(double));
+    out->t_profile = lu_calloc((size_t)bins, sizeof(double));
+    out->r_multiple = lu_calloc((size_t)bins, sizeof(double));
+    out->r_profile_stderr = lu_calloc((size_t)bins, sizeof(double));
     if (!j.tally || !out->r_profile || !out->t_profile || !out->r_multiple || !out->r_profile_stderr) {
-        free(j.tally);
+        lu_free(j.tally);
         lu_bssrdf_mc_destroy(out);
         return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     }
@@ -153,7 +153,7 @@ lu_result lu_bssrdf_mc_slab(double sigma_sp, double sigma_a, double eta, double 
         }
         out->r_profile_stderr[b] = sqrt(ss / ((double)MC_CHUNKS * (MC_CHUNKS - 1)));
     }
-    free(j.tally);
+    lu_free(j.tally);
     for (int b = 0; b < bins; b++) {
         double area = M_PI * dr * dr * ((b + 1.0) * (b + 1.0) - (double)b * b);
         out->r_profile_stderr[b] /= area;
@@ -174,9 +174,9 @@ lu_result lu_bssrdf_mc_slab(double sigma_sp, double sigma_a, double eta, double 
 
 void lu_bssrdf_mc_destroy(lu_bssrdf_mc_result *r) {
     if (!r) return;
-    free(r->r_profile);
-    free(r->t_profile);
-    free(r->r_multiple);
-    free(r->r_profile_stderr);
+    lu_free(r->r_profile);
+    lu_free(r->t_profile);
+    lu_free(r->r_multiple);
+    lu_free(r->r_profile_stderr);
     memset(r, 0, sizeof *r);
 }

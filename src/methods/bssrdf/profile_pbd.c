@@ -194,25 +194,25 @@ static double cr_integral(const double *x, const double *f, int n) {
 }
 
 static void table_free(lu_bssrdf_pbd_table *t) {
-    free(t->rho);
-    free(t->r);
-    free(t->profile);
-    free(t->ss);
-    free(t->rho_eff);
-    free(t);
+    lu_free(t->rho);
+    lu_free(t->r);
+    lu_free(t->profile);
+    lu_free(t->ss);
+    lu_free(t->rho_eff);
+    lu_free(t);
 }
 
 static lu_result table_build(double eta, lu_bssrdf_pbd_table **out, lu_error *err) {
-    lu_bssrdf_pbd_table *t = calloc(1, sizeof *t);
+    lu_bssrdf_pbd_table *t = lu_calloc(1, sizeof *t);
     if (!t) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the pbd table");
     t->eta = eta;
     t->n_rho = PBD_N_RHO;
     t->n_r = PBD_N_R;
-    t->rho = malloc(PBD_N_RHO * sizeof *t->rho);
-    t->r = malloc(PBD_N_R * sizeof *t->r);
-    t->profile = malloc((size_t)PBD_N_RHO * PBD_N_R * sizeof *t->profile);
-    t->ss = malloc((size_t)PBD_N_RHO * PBD_N_R * sizeof *t->ss);
-    t->rho_eff = malloc(PBD_N_RHO * sizeof *t->rho_eff);
+    t->rho = lu_malloc(PBD_N_RHO * sizeof *t->rho);
+    t->r = lu_malloc(PBD_N_R * sizeof *t->r);
+    t->profile = lu_malloc((size_t)PBD_N_RHO * PBD_N_R * sizeof *t->profile);
+    t->ss = lu_malloc((size_t)PBD_N_RHO * PBD_N_R * sizeof *t->ss);
+    t->rho_eff = lu_malloc(PBD_N_RHO * sizeof *t->rho_eff);
     if (!t->rho || !t->r || !t->profile || !t->ss || !t->rho_eff) {
         table_free(t);
         return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory for the pbd table");

@@ -72,14 +72,14 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const l
     const lu_camera *c = &scene->camera;
     const lu_k_camera cam = rec->cam;
     int light_count = rec->light_count, nl = light_count > 0 ? light_count : 1;
-    float *lights = calloc((size_t)nl * LU_SCENE_LIGHT_VEC4 * 4, sizeof(float));
+    float *lights = lu_calloc((size_t)nl * LU_SCENE_LIGHT_VEC4 * 4, sizeof(float));
     size_t maj_floats = 0;
     for (int m = 0; m < gs->medium_count; m++) maj_floats += (size_t)gs->maj[m].nx * gs->maj[m].ny * gs->maj[m].nz;
     size_t media_floats = (size_t)LU_SCENE_MAJORANT_DATA * 4 + (maj_floats + 3) / 4 * 4;
-    float *media = calloc(media_floats, sizeof(float));
+    float *media = lu_calloc(media_floats, sizeof(float));
     if (!lights || !media) {
-        free(lights);
-        free(media);
+        lu_free(lights);
+        lu_free(media);
         return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
     }
     for (int l = 0; l < light_count; l++) {
@@ -131,8 +131,8 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const l
         if (!gs->header) r = lu_gpu_buffer_create(gs->ctx, sizeof header, header, &gs->header, err);
         else r = lu_gpu_buffer_upload(gs->header, 0, header, sizeof header, err);
     }
-    free(lights);
-    free(media);
+    lu_free(lights);
+    lu_free(media);
     return r;
 }
 
@@ -142,7 +142,7 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
     if (scene->medium_count > LU_SCENE_MAX_MEDIA)
         return lu_fail(err, LU_ERR_LIMIT, "gpu scene: %d media, the GPU backend takes at most %d",
                        scene->medium_count, LU_SCENE_MAX_MEDIA);
-    lu_gpu_scene *gs = calloc(1, sizeof *gs);
+    lu_gpu_scene *gs = lu_calloc(1, sizeof *gs);
     if (!gs) return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
     gs->ctx = ctx;
     gs->medium_count = scene->medium_count;
@@ -217,5 +217,5 @@ void lu_gpu_scene_destroy(lu_gpu_scene *gs) {
     lu_gpu_buffer_destroy(gs->header);
     lu_gpu_buffer_destroy(gs->media);
     lu_gpu_buffer_destroy(gs->lights);
-    free(gs);
+    lu_free(gs);
 }

@@ -59,12 +59,12 @@ void lu_lightviews_for_light(const lu_light *l, lu_aabb region, lu_lightviews *o
 lu_result lu_lightviews_for_scene(const lu_scene *scene, lu_aabb region, float cube_widen, lu_k_lightview **views,
                                   float **packed, int **table, int *count, lu_error *err) {
     size_t nls = scene->light_count ? (size_t)scene->light_count : 1u;
-    free(*views);
-    free(*packed);
-    free(*table);
-    *views = calloc(nls * 6, sizeof **views);
-    *packed = calloc(nls * 6 * 16, sizeof **packed);
-    *table = calloc(nls * 2, sizeof **table);
+    lu_free(*views);
+    lu_free(*packed);
+    lu_free(*table);
+    *views = lu_calloc(nls * 6, sizeof **views);
+    *packed = lu_calloc(nls * 6 * 16, sizeof **packed);
+    *table = lu_calloc(nls * 2, sizeof **table);
     *count = 0;
     if (!*views || !*packed || !*table) return lu_fail(err, LU_ERR_NOMEM, "out of memory for light views");
     int k = 0;

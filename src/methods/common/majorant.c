@@ -14,7 +14,7 @@ lu_result lu_majorant_build(const lu_grid *g, int block, lu_majorant *out, lu_er
     out->nx = (g->nx + 1 + block - 1) / block;
     out->ny = (g->ny + 1 + block - 1) / block;
     out->nz = (g->nz + 1 + block - 1) / block;
-    out->dmax = calloc((size_t)out->nx * out->ny * out->nz, sizeof *out->dmax);
+    out->dmax = lu_calloc((size_t)out->nx * out->ny * out->nz, sizeof *out->dmax);
     if (!out->dmax) return lu_fail(err, LU_ERR_NOMEM, "out of memory for the majorant grid");
     for (int bz = 0; bz < out->nz; bz++)
         for (int by = 0; by < out->ny; by++)
@@ -33,6 +33,6 @@ lu_result lu_majorant_build(const lu_grid *g, int block, lu_majorant *out, lu_er
 
 void lu_majorant_destroy(lu_majorant *m) {
     if (!m) return;
-    free(m->dmax);
+    lu_free(m->dmax);
     memset(m, 0, sizeof *m);
 }

@@ -19,7 +19,7 @@ lu_result lu_media_rays_init(lu_media_rays *mr, const lu_scene *scene, int shado
     lu_result r = lu_opaque_accel_build(scene, &mr->opaque, &mr->opaque_object, err);
     mr->medium_count = scene->medium_count;
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
-    mr->boundary = calloc(nm, sizeof *mr->boundary);
+    mr->boundary = lu_calloc(nm, sizeof *mr->boundary);
     if (!mr->boundary && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "out of memory");
     for (int m = 0; m < scene->medium_count && r == LU_OK; m++)
         if (scene->media[m].has_boundary) r = lu_mesh_accel_build(&scene->media[m].boundary, &mr->boundary[m], err);
@@ -30,19 +30,19 @@ void lu_media_rays_free(lu_media_rays *mr) {
     if (mr->opaque) lu_accel_destroy(mr->opaque);
     for (int m = 0; m < mr->medium_count && mr->boundary; m++)
         if (mr->boundary[m]) lu_accel_destroy(mr->boundary[m]);
-    free(mr->boundary);
-    free(mr->opaque_object);
-    free(mr->hits);
-    free(mr->spans);
-    free(mr->normals);
-    free(mr->surface_vis);
-    free(mr->views);
-    free(mr->views_packed);
-    free(mr->view_table);
-    free(mr->shadow);
-    free(mr->bmap);
+    lu_free(mr->boundary);
+    lu_free(mr->opaque_object);
+    lu_free(mr->hits);
+    lu_free(mr->spans);
+    lu_free(mr->normals);
+    lu_free(mr->surface_vis);
+    lu_free(mr->views);
+    lu_free(mr->views_packed);
+    lu_free(mr->view_table);
+    lu_free(mr->shadow);
+    lu_free(mr->bmap);
     for (int m = 0; m < mr->medium_count && mr->majorants; m++) lu_majorant_destroy(&mr->majorants[m]);
-    free(mr->majorants);
+    lu_free(mr->majorants);
     memset(mr, 0, sizeof *mr);
 }
 
@@ -75,7 +75,7 @@ void lu_media_ray_spans(const lu_media_rays *mr, lu_vec3 o, lu_vec3 d, float t_e
 lu_result lu_media_rays_majorants(lu_media_rays *mr, const lu_frame *f, const lu_grid *dens, lu_error *err) {
     const lu_scene *scene = f->scene;
     if (!mr->majorants) {
-        mr->majorants = calloc(mr->medium_count ? (size_t)mr->medium_count : 1u, sizeof *mr->majorants);
+        mr->majorants = lu_calloc(mr->medium_count ? (size_t)mr->medium_count : 1u, sizeof *mr->majorants);
         if (!mr->majorants) return lu_fail(err, LU_ERR_NOMEM, "out of memory for the majorant grids");
         mr->majorants_valid = false;
     }
@@ -144,12 +144,12 @@ lu_result lu_media_rays_camera(lu_media_rays *mr, const lu_frame *f, lu_k_camera
     size_t pixels = (size_t)c->width * c->height;
     size_t nm = mr->medium_count ? (size_t)mr->medium_count : 1u;
     if (pixels > mr->pixels_cap) {
-        free(mr->hits);
-        free(mr->spans);
-        free(mr->normals);
-        mr->hits = malloc(pixels * LU_MR_HIT_FLOATS * sizeof(float));
-        mr->spans = malloc(pixels * nm * 2 * sizeof(float));
-        mr->normals = mr->want_normals ? malloc(pixels * nm * LU_MR_NORMAL_FLOATS * sizeof(float)) : NULL;
+        lu_free(mr->hits);
+        lu_free(mr->spans);
+        lu_free(mr->normals);
+        mr->hits = lu_malloc(pixels * LU_MR_HIT_FLOATS * sizeof(float));
+        mr->spans = lu_malloc(pixels * nm * 2 * sizeof(float));
+        mr->normals = mr->want_normals ? lu_malloc(pixels * nm * LU_MR_NORMAL_FLOATS * sizeof(float)) : NULL;
         bool ok = mr->hits && mr->spans && (mr->normals || !mr->want_normals);
         mr->pixels_cap = ok ? pixels : 0;
         mr->hits_valid = false;
@@ -205,8 +205,8 @@ lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_frame *f, lu_k_c
     const lu_camera *c = &scene->camera;
     size_t n = (size_t)c->width * c->height * (size_t)(nl ? nl : 1);
     if (n > mr->surface_vis_cap) {
-        free(mr->surface_vis);
-        mr->surface_vis = malloc(n * sizeof(float));
+        lu_free(mr->surface_vis);
+        mr->surface_vis = lu_malloc(n * sizeof(float));
         mr->surface_vis_cap = mr->surface_vis ? n : 0;
         mr->vis_valid = false;
         if (!mr->surface_vis) return lu_fail(err, LU_ERR_NOMEM, "out of memory for surface visibility");
@@ -233,7 +233,7 @@ lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_frame *f, const lu_k_li
     const lu_scene *scene = f->scene;
     if (!lu_frame_stale(f, mr->maps_valid, LU_CHANGE_LIGHTS | LU_CHANGE_GEOMETRY)) return LU_OK;
     size_t nls = nl ? (size_t)nl : 1u;
-    free(mr->shadow);
+    lu_free(mr->shadow);
     mr->shadow = NULL;
     mr->maps_valid = false;
     lu_result r = lu_lightviews_for_scene(scene, lu_scene_bounds(scene), 1.0f, &mr->views, &mr->views_packed,
@@ -246,14 +246,14 @@ lu_result lu_media_rays_maps(lu_media_rays *mr, const lu_frame *f, const lu_k_li
     }
     if (mr->opaque) {
         size_t texels = (size_t)mr->shadow_res * mr->shadow_res;
-        mr->shadow = malloc((mr->view_count ? (size_t)mr->view_count : 1u) * texels * sizeof(float));
+        mr->shadow = lu_malloc((mr->view_count ? (size_t)mr->view_count : 1u) * texels * sizeof(float));
         if (!mr->shadow) return lu_fail(err, LU_ERR_NOMEM, "out of memory for shadow maps");
         for (int v = 0; v < mr->view_count; v++) {
             r = lu_shadow_map_build(mr->opaque, &mr->views[v], mr->shadow_res, 1e30f, mr->shadow + v * texels, err);
             if (r != LU_OK) return r;
         }
     } else {
-        mr->shadow = calloc(1, sizeof(float));
+        mr->shadow = lu_calloc(1, sizeof(float));
         if (!mr->shadow) return lu_fail(err, LU_ERR_NOMEM, "out of memory");
     }
     mr->maps_valid = true;
@@ -311,7 +311,7 @@ lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_frame *f, cons
     if (!lu_frame_stale(f, mr->bmap_valid, LU_CHANGE_LIGHTS | LU_CHANGE_GEOMETRY)) return LU_OK;
     bool bounded = false;
     for (int m = 0; m < mr->medium_count; m++) bounded = bounded || mr->boundary[m];
-    free(mr->bmap);
+    lu_free(mr->bmap);
     mr->bmap = NULL;
     mr->bmap_floats = 0;
     mr->bmap_view_count = 0;
@@ -327,7 +327,7 @@ lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_frame *f, cons
         mr->bmap_views_at = (int)(2 * nls);
         mr->bmap_maps_at = mr->bmap_views_at + count * LU_RM_VIEW_FLOATS;
         mr->bmap_floats = (size_t)mr->bmap_maps_at + (size_t)count * mr->medium_count * texels * LU_MR_BMAP_FLOATS;
-        mr->bmap = calloc(mr->bmap_floats, sizeof(float));
+        mr->bmap = lu_calloc(mr->bmap_floats, sizeof(float));
         if (!mr->bmap) r = lu_fail(err, LU_ERR_NOMEM, "out of memory for boundary maps");
     }
     if (r == LU_OK && bounded) {
@@ -337,9 +337,9 @@ lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_frame *f, cons
         bmap_job j = {mr, scene, views};
         lu_parallel_for((int64_t)count * mr->medium_count * mr->shadow_res, 8, bmap_rows, &j, NULL);
     }
-    free(views);
-    free(packed);
-    free(table);
+    lu_free(views);
+    lu_free(packed);
+    lu_free(table);
     if (r != LU_OK) return r;
     mr->bmap_valid = true;
     mr->bmap_version++;

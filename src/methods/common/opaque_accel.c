@@ -9,7 +9,7 @@ lu_result lu_opaque_accel_build(const lu_scene *scene, lu_accel **out, int **obj
     int count = 0;
     for (int i = 0; i < scene->object_count; i++) count += scene->objects[i].material.type == LU_MATERIAL_DIFFUSE;
     if (count == 0) return LU_OK;
-    int *map = calloc((size_t)count, sizeof *map);
+    int *map = lu_calloc((size_t)count, sizeof *map);
     if (!map) return lu_fail(err, LU_ERR_NOMEM, "out of memory for the opaque objects");
     lu_accel *a = NULL;
     lu_result r = lu_accel_create(&a, err);
@@ -22,7 +22,7 @@ lu_result lu_opaque_accel_build(const lu_scene *scene, lu_accel **out, int **obj
     if (r == LU_OK) r = lu_accel_commit(a, err);
     if (r != LU_OK) {
         if (a) lu_accel_destroy(a);
-        free(map);
+        lu_free(map);
         return r;
     }
     *out = a;

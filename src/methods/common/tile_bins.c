@@ -9,7 +9,7 @@ static lu_result grow(int **p, size_t *cap, size_t need, lu_error *err) {
     if (need <= *cap) return LU_OK;
     size_t n = *cap ? *cap : 1024;
     while (n < need) n *= 2;
-    int *q = realloc(*p, n * sizeof *q);
+    int *q = lu_realloc(*p, n * sizeof *q);
     if (!q) return lu_fail(err, LU_ERR_NOMEM, "tile binning: out of memory (%zu entries)", n);
     *p = q;
     *cap = n;
@@ -53,8 +53,8 @@ lu_result lu_tile_bins_build(lu_tile_bins *b, int width, int height, int tile, i
 }
 
 void lu_tile_bins_free(lu_tile_bins *b) {
-    free(b->start);
-    free(b->list);
-    free(b->fill);
+    lu_free(b->start);
+    lu_free(b->list);
+    lu_free(b->fill);
     memset(b, 0, sizeof *b);
 }

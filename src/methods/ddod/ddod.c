@@ -97,7 +97,7 @@ static const lu_param_desc k_params[P_COUNT] = {
                      "attenuation towards point and directional lights: traced per sample on the CPU when a light "
                      "moves (exact), or sh = the paper's SH evaluation (smears sharp shadows of flat faces)"},
     [P_CACHE] = {"cache", LU_PARAM_BOOL, 1, 0, 1, NULL,
-                 "load / store the precomputation in $LUCENT_CACHE_DIR (default out/cache)"},
+                 "load / store the precomputation in the cache folder (lu_host.cache_dir)"},
     [P_SEED] = {"seed", LU_PARAM_INT, 1, 0, 1000000, NULL, "seed of the Poisson-disk sampling"},
 };
 
@@ -161,16 +161,16 @@ static void ddod_destroy(void *state) {
     if (!st) return;
     lu_ddod_gpu_destroy(st->gpu);
     lu_ddod_set_free(&st->set);
-    free(st->sh);
+    lu_free(st->sh);
     lu_media_rays_free(&st->mr);
-    free(st->pixels);
-    free(st->radiance);
-    free(st->rects);
-    free(st->traced_tab);
-    free(st->tab_lights);
-    free(st->tab_retrace);
+    lu_free(st->pixels);
+    lu_free(st->radiance);
+    lu_free(st->rects);
+    lu_free(st->traced_tab);
+    lu_free(st->tab_lights);
+    lu_free(st->tab_retrace);
     lu_tile_bins_free(&st->bins);
-    free(st);
+    lu_free(st);
 }
 
 /* Per-band window weights (Sloan, "Stupid SH Tricks" §: windowing). */
@@ -212,8 +212,8 @@ static void env_project(const lu_light *l, int bands, float *out) {
 /* The windowed copy of the set's SH. */
 static lu_result window_sh(ddod_state *st, lu_error *err) {
     size_t n = (size_t)st->set.count * st->set.stride;
-    free(st->sh);
-    st->sh = malloc((n ? n : 1u) * sizeof *st->sh);
+    lu_free(st->sh);
+    st->sh = lu_malloc((n ? n : 1u) * sizeof *st->sh);
     if (!st->sh) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     int nc = st->set.bands * st->set.bands;
     for (size_t i = 0; i < n; i++) {
@@ -238,7 +238,7 @@ static void env_update(ddod_state *st, const lu_scene *scene) {
 
 static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                               lu_error *err) {
-    ddod_state *st = calloc(1, sizeof *st);
+    ddod_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     st->backend = backend;
     st->normalize = (int)params[P_NORMALIZE];
@@ -277,10 +277,9 @@ static lu_result ddod_prepare(const lu_scene *scene, const double *params, lu_ba
     }
     st->stats.samples = st->set.count;
     st->stats.precompute = st->set.timing;
-    const char *quiet = getenv("LUCENT_QUIET");
-    if (!(quiet && *quiet && strcmp(quiet, "0") != 0)) {
+    if (lu_log_enabled(LU_LOG_INFO)) {
         const lu_ddod_timing *t = &st->set.timing;
-        fprintf(stderr,
+        lu_log_msg(LU_LOG_INFO,
                 "ddod: %d samples, %d SH coefficients x %d channel(s); precompute %s%.2f s (optical depth %.2f, "
                 "divergence %.2f, sampling %.2f, SH %.2f; processor time %.2f s)\n",
                 st->set.count, st->set.bands * st->set.bands, st->set.channels, t->from_cache ? "loaded, took " : "",
@@ -390,9 +389,9 @@ static lu_result update_traced(ddod_state *st, const lu_frame *f, bool set_chang
                  (f->changed & (LU_CHANGE_MEDIA | LU_CHANGE_GEOMETRY));
     if (fresh) {
         size_t need = (size_t)(st->set.count ? st->set.count : 1) * (size_t)(st->nl + 1) * 4;
-        float *t = realloc(st->traced_tab, need * sizeof *t);
-        lu_k_light *pl = realloc(st->tab_lights, (st->nl ? (size_t)st->nl : 1u) * sizeof *pl);
-        bool *rt = realloc(st->tab_retrace, (st->nl ? (size_t)st->nl : 1u) * sizeof *rt);
+        float *t = lu_realloc(st->traced_tab, need * sizeof *t);
+        lu_k_light *pl = lu_realloc(st->tab_lights, (st->nl ? (size_t)st->nl : 1u) * sizeof *pl);
+        bool *rt = lu_realloc(st->tab_retrace, (st->nl ? (size_t)st->nl : 1u) * sizeof *rt);
         if (t) st->traced_tab = t;
         if (pl) st->tab_lights = pl;
         if (rt) st->tab_retrace = rt;
@@ -599,18 +598,18 @@ static lu_result ddod_render(void *state, const lu_frame *frame, lu_image *out, 
     }
     size_t pixels = (size_t)c->width * c->height;
     if (pixels > st->pixels_cap) {
-        free(st->pixels);
-        st->pixels = malloc(pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float));
+        lu_free(st->pixels);
+        st->pixels = lu_malloc(pixels * LU_K_DDOD_PIXEL_FLOATS * sizeof(float));
         st->pixels_cap = st->pixels ? pixels : 0;
         st->pixels_valid = false;
         if (!st->pixels) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %zu pixels", pixels);
     }
     size_t samples = st->set.count ? (size_t)st->set.count : 1u;
     if (samples > st->samples_cap) {
-        free(st->radiance);
-        free(st->rects);
-        st->radiance = malloc(samples * 4 * sizeof(float));
-        st->rects = malloc(samples * sizeof *st->rects);
+        lu_free(st->radiance);
+        lu_free(st->rects);
+        st->radiance = lu_malloc(samples * 4 * sizeof(float));
+        st->rects = lu_malloc(samples * sizeof *st->rects);
         st->samples_cap = st->radiance && st->rects ? samples : 0;
         st->bins_valid = false;
         if (!st->samples_cap) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %zu samples", samples);
@@ -676,8 +675,7 @@ static lu_result ddod_render(void *state, const lu_frame *frame, lu_image *out, 
     st->stats.ms_binning = 1e3 * (t2 - t1);
     st->stats.ms_samples = 1e3 * (t3 - t2);
     st->stats.ms_gather = 1e3 * (t4 - t3);
-    if (getenv("LUCENT_DDOD_DEBUG"))
-        fprintf(stderr, "ddod: frame ms: traced view %.1f, traced lights %.1f (%d), pixels %.1f, binning %.1f, samples %.1f, gather %.1f\n",
+    lu_log_msg(LU_LOG_DEBUG, "ddod: frame ms: traced view %.1f, traced lights %.1f (%d), pixels %.1f, binning %.1f, samples %.1f, gather %.1f\n",
                 st->stats.ms_traced_view, st->stats.ms_traced_lights, st->nl, st->stats.ms_pixels, st->stats.ms_binning,
                 st->stats.ms_samples, st->stats.ms_gather);
     return LU_OK;

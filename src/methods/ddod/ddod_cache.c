@@ -138,8 +138,8 @@ lu_result lu_ddod_cache_load(const char *path, uint64_t key, lu_ddod_set *s, lu_
         s->bands = h.bands;
         s->channels = h.channels;
         s->stride = h.stride;
-        s->samples = malloc((size_t)h.count * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float));
-        s->sh = malloc((size_t)h.count * h.stride * sizeof(float));
+        s->samples = lu_malloc((size_t)h.count * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float));
+        s->sh = lu_malloc((size_t)h.count * h.stride * sizeof(float));
         uint64_t sum = 0;
         if (!s->samples || !s->sh) {
             fclose(fp);
@@ -171,7 +171,8 @@ lu_result lu_ddod_cache_load(const char *path, uint64_t key, lu_ddod_set *s, lu_
 
 lu_result lu_ddod_prepare_set(const lu_scene *scene, const lu_ddod_params *p, bool use_cache, lu_ddod_set *out,
                               lu_error *err) {
-    if (!use_cache) return lu_ddod_compute(scene, p, out, err);
+    /* No cache folder (the host named none): compute every time. */
+    if (!use_cache || !lu_cache_enabled()) return lu_ddod_compute(scene, p, out, err);
     uint64_t key = lu_ddod_key(scene, p);
     char name[64], path[1100];
     snprintf(name, sizeof name, "ddod-%016llx.bin", (unsigned long long)key);

@@ -23,7 +23,7 @@ struct lu_ddod_gpu {
 
 lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error *err) {
     *out = NULL;
-    lu_ddod_gpu *g = calloc(1, sizeof *g);
+    lu_ddod_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
     if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/ddod/ddod.comp", "#define LU_DDOD_PASS 1\n", &g->pass1, err);
@@ -49,7 +49,7 @@ void lu_ddod_gpu_destroy(lu_ddod_gpu *g) {
     lu_gpu_program_destroy(g->pass1);
     lu_gpu_program_destroy(g->pass2);
     lu_gpu_context_destroy(g->ctx);
-    free(g);
+    lu_free(g);
 }
 
 static void set_uniforms(lu_gpu_program *p, const lu_ddod_frame *f) {

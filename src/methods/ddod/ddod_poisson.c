@@ -6,9 +6,9 @@
 #include <string.h>
 
 void lu_ddod_darts_free(lu_ddod_darts *d) {
-    free(d->p);
-    free(d->r);
-    free(d->valid);
+    lu_free(d->p);
+    lu_free(d->r);
+    lu_free(d->valid);
     memset(d, 0, sizeof *d);
 }
 
@@ -30,7 +30,7 @@ static int cmp_dart_key(const void *a, const void *b) {
 lu_result lu_ddod_darts_draw(const lu_ddod_field *f, int candidates, uint32_t seed, lu_ddod_darts *d, lu_error *err) {
     memset(d, 0, sizeof *d);
     size_t nv = (size_t)f->n[0] * f->n[1] * f->n[2];
-    double *cdf = malloc((nv + 1) * sizeof *cdf);
+    double *cdf = lu_malloc((nv + 1) * sizeof *cdf);
     if (!cdf) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for sampling");
     cdf[0] = 0.0;
     for (size_t v = 0; v < nv; v++) {
@@ -39,16 +39,16 @@ lu_result lu_ddod_darts_draw(const lu_ddod_field *f, int candidates, uint32_t se
         d->rmax = r > d->rmax ? r : d->rmax;
     }
     if (!(cdf[nv] > 0.0) || candidates <= 0) {
-        free(cdf);
+        lu_free(cdf);
         return LU_OK;
     }
-    dart_key *key = malloc((size_t)candidates * sizeof *key);
-    float *off = malloc((size_t)candidates * 3 * sizeof *off);
-    d->p = malloc((size_t)candidates * 3 * sizeof *d->p);
-    d->r = malloc((size_t)candidates * sizeof *d->r);
-    d->valid = calloc((size_t)candidates, sizeof *d->valid);
+    dart_key *key = lu_malloc((size_t)candidates * sizeof *key);
+    float *off = lu_malloc((size_t)candidates * 3 * sizeof *off);
+    d->p = lu_malloc((size_t)candidates * 3 * sizeof *d->p);
+    d->r = lu_malloc((size_t)candidates * sizeof *d->r);
+    d->valid = lu_calloc((size_t)candidates, sizeof *d->valid);
     if (!key || !off || !d->p || !d->r || !d->valid) {
-        free(cdf), free(key), free(off);
+        lu_free(cdf), lu_free(key), lu_free(off);
         lu_ddod_darts_free(d);
         return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %d sampling candidates", candidates);
     }
@@ -72,9 +72,9 @@ lu_result lu_ddod_darts_draw(const lu_ddod_field *f, int candidates, uint32_t se
         n++;
     }
     d->n = n;
-    free(cdf);
-    free(key);
-    free(off);
+    lu_free(cdf);
+    lu_free(key);
+    lu_free(off);
     return LU_OK;
 }
 
@@ -97,13 +97,13 @@ lu_result lu_ddod_darts_throw(const lu_ddod_field *f, lu_ddod_darts *d, float sc
     }
     float cell[3] = {ext.x / (float)cn[0], ext.y / (float)cn[1], ext.z / (float)cn[2]};
     size_t ncell = (size_t)cn[0] * cn[1] * cn[2];
-    int *head = malloc(ncell * sizeof *head);
+    int *head = lu_malloc(ncell * sizeof *head);
     int cap = 4096;
-    float *pts = malloc((size_t)cap * 3 * sizeof *pts);
-    float *rad = malloc((size_t)cap * sizeof *rad);
-    int *next = malloc((size_t)cap * sizeof *next);
+    float *pts = lu_malloc((size_t)cap * 3 * sizeof *pts);
+    float *rad = lu_malloc((size_t)cap * sizeof *rad);
+    int *next = lu_malloc((size_t)cap * sizeof *next);
     if (!head || !pts || !rad || !next) {
-        free(head), free(pts), free(rad), free(next);
+        lu_free(head), lu_free(pts), lu_free(rad), lu_free(next);
         return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for sampling");
     }
     for (size_t i = 0; i < ncell; i++) head[i] = -1;
@@ -146,13 +146,13 @@ lu_result lu_ddod_darts_throw(const lu_ddod_field *f, lu_ddod_darts *d, float sc
         }
         if (count == cap) {
             cap *= 2;
-            float *np = realloc(pts, (size_t)cap * 3 * sizeof *np);
+            float *np = lu_realloc(pts, (size_t)cap * 3 * sizeof *np);
             if (np) pts = np;
-            float *nr = np ? realloc(rad, (size_t)cap * sizeof *nr) : NULL;
+            float *nr = np ? lu_realloc(rad, (size_t)cap * sizeof *nr) : NULL;
             if (nr) rad = nr;
-            int *nn = nr ? realloc(next, (size_t)cap * sizeof *nn) : NULL;
+            int *nn = nr ? lu_realloc(next, (size_t)cap * sizeof *nn) : NULL;
             if (!nn) {
-                free(head), free(pts), free(rad), free(next);
+                lu_free(head), lu_free(pts), lu_free(rad), lu_free(next);
                 return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %d samples", cap);
             }
             next = nn;
@@ -166,8 +166,8 @@ lu_result lu_ddod_darts_throw(const lu_ddod_field *f, lu_ddod_darts *d, float sc
         head[ci] = count;
         count++;
     }
-    free(head);
-    free(next);
+    lu_free(head);
+    lu_free(next);
     *points_out = pts;
     *radii_out = rad;
     *count_out = count;

@@ -81,12 +81,12 @@ typedef struct vgrid {
 } vgrid;
 
 static void vgrid_free(vgrid *g) {
-    free(g->density);
-    free(g->inside);
-    free(g->blocked);
+    lu_free(g->density);
+    lu_free(g->inside);
+    lu_free(g->blocked);
     for (int a = 0; a < 3; a++) {
-        free(g->perm[a]);
-        free(g->perm_raw[a]);
+        lu_free(g->perm[a]);
+        lu_free(g->perm_raw[a]);
     }
     memset(g, 0, sizeof *g);
 }
@@ -144,11 +144,11 @@ static lu_result vgrid_build(vgrid *g, const lu_medium *m, const lu_accel *bound
     for (int a = 0; a < 3; a++)
         if (g->n[a] < 3) g->n[a] = 3;
     g->count = (size_t)g->n[0] * g->n[1] * g->n[2];
-    g->density = malloc(g->count * sizeof(float));
+    g->density = lu_malloc(g->count * sizeof(float));
     for (int a = 0; a < 3; a++) {
-        g->perm[a] = malloc(g->count * sizeof(float));
-        g->perm_raw[a] = malloc(g->count * sizeof(float));
-        if (!g->perm[a] || !g->perm_raw[a]) g->density = (free(g->density), NULL);
+        g->perm[a] = lu_malloc(g->count * sizeof(float));
+        g->perm_raw[a] = lu_malloc(g->count * sizeof(float));
+        if (!g->perm[a] || !g->perm_raw[a]) g->density = (lu_free(g->density), NULL);
     }
     if (!g->density) {
         vgrid_free(g);
@@ -358,21 +358,21 @@ static lu_result first_moment(const vgrid *g, const lu_vec3 *dirs, int ndirs, fl
     if (groups > ndirs) groups = ndirs;
     if (groups > 8) groups = 8;
     moment_job j = {g, dirs, ndirs, groups, sigma_t, NULL, NULL, NULL};
-    j.acc = calloc((size_t)groups * 9, sizeof *j.acc);
-    j.scratch = calloc((size_t)groups * 2, sizeof *j.scratch);
+    j.acc = lu_calloc((size_t)groups * 9, sizeof *j.acc);
+    j.scratch = lu_calloc((size_t)groups * 2, sizeof *j.scratch);
     bool ok = j.acc && j.scratch;
     size_t slice = max_slice(g);
-    for (int i = 0; ok && i < groups * 9; i++) ok = (j.acc[i] = calloc(g->count, sizeof(int32_t))) != NULL;
-    for (int i = 0; ok && i < groups * 2; i++) ok = (j.scratch[i] = malloc(slice * sizeof(float))) != NULL;
+    for (int i = 0; ok && i < groups * 9; i++) ok = (j.acc[i] = lu_calloc(g->count, sizeof(int32_t))) != NULL;
+    for (int i = 0; ok && i < groups * 2; i++) ok = (j.scratch[i] = lu_malloc(slice * sizeof(float))) != NULL;
     if (ok) {
         lu_parallel_for(groups, 1, moment_groups, &j, "ddod: optical depth");
         j.T = T;
         lu_parallel_for((int64_t)g->n[1] * g->n[2], 0, moment_sum_rows, &j, NULL);
     }
-    for (int i = 0; j.acc && i < groups * 9; i++) free(j.acc[i]);
-    for (int i = 0; j.scratch && i < groups * 2; i++) free(j.scratch[i]);
-    free(j.acc);
-    free(j.scratch);
+    for (int i = 0; j.acc && i < groups * 9; i++) lu_free(j.acc[i]);
+    for (int i = 0; j.scratch && i < groups * 2; i++) lu_free(j.scratch[i]);
+    lu_free(j.acc);
+    lu_free(j.scratch);
     return ok ? LU_OK : lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the first-moment sums");
 }
 
@@ -576,9 +576,9 @@ static lu_result fit_partition(float *rec, int count, int iters, lu_error *err) 
     j.reach = (int)ceilf(LU_K_DDOD_CUTOFF * smax / j.cell);
     j.lo = lo;
     size_t ncell = (size_t)j.cn[0] * j.cn[1] * j.cn[2];
-    int *head = malloc(ncell * sizeof *head), *next = malloc((size_t)count * sizeof *next);
-    j.start = calloc((size_t)count + 1, sizeof *j.start);
-    float *S = malloc((size_t)count * sizeof *S);
+    int *head = lu_malloc(ncell * sizeof *head), *next = lu_malloc((size_t)count * sizeof *next);
+    j.start = lu_calloc((size_t)count + 1, sizeof *j.start);
+    float *S = lu_malloc((size_t)count * sizeof *S);
     lu_result r = LU_OK;
     if (!head || !next || !j.start || !S) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the partition fit");
     if (r == LU_OK) {
@@ -599,8 +599,8 @@ static lu_result fit_partition(float *rec, int count, int iters, lu_error *err) 
         j.next = next;
         lu_parallel_for(count, 0, pou_neighbours, &j, NULL);
         for (int i = 0; i < count; i++) j.start[i + 1] += j.start[i];
-        j.nb = malloc((size_t)j.start[count] * sizeof *j.nb);
-        j.w = malloc((size_t)j.start[count] * sizeof *j.w);
+        j.nb = lu_malloc((size_t)j.start[count] * sizeof *j.nb);
+        j.w = lu_malloc((size_t)j.start[count] * sizeof *j.w);
         if (!j.nb || !j.w) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the partition fit");
     }
     if (r == LU_OK) {
@@ -613,12 +613,12 @@ static lu_result fit_partition(float *rec, int count, int iters, lu_error *err) 
                 if (S[i] > 0.0f) rec[(size_t)i * LU_K_DDOD_SAMPLE_FLOATS + LU_K_DDOD_SAMPLE_AMP] /= powf(S[i], 0.7f);
         }
     }
-    free(head);
-    free(next);
-    free(j.start);
-    free(j.nb);
-    free(j.w);
-    free(S);
+    lu_free(head);
+    lu_free(next);
+    lu_free(j.start);
+    lu_free(j.nb);
+    lu_free(j.w);
+    lu_free(S);
     return r;
 }
 
@@ -670,7 +670,7 @@ typedef struct sh_job {
  * does (same sums in the same order) but from the shared basis table. */
 static void sh_samples(void *ctx, int64_t begin, int64_t end, int thread) {
     sh_job *j = ctx;
-    float *f = malloc((size_t)j->ndirs * 2 * sizeof *f);
+    float *f = lu_malloc((size_t)j->ndirs * 2 * sizeof *f);
     if (!f) {
         atomic_store(&j->failed, 1);
         return;
@@ -694,7 +694,7 @@ static void sh_samples(void *ctx, int64_t begin, int64_t end, int thread) {
             }
         }
     }
-    free(f);
+    lu_free(f);
 }
 
 /* Spreads the low 10 bits of x to every third bit. */
@@ -717,10 +717,10 @@ static int cmp_u64(const void *a, const void *b) {
  * direction, neighbour sums of the fit, the renderer's tiles) reads
  * neighbours together. */
 static lu_result sort_samples(float *pts, float *rad, int count, lu_vec3 lo, lu_vec3 ext, lu_error *err) {
-    uint64_t *key = malloc((size_t)count * sizeof *key);
-    float *tmp = malloc((size_t)count * 4 * sizeof *tmp);
+    uint64_t *key = lu_malloc((size_t)count * sizeof *key);
+    float *tmp = lu_malloc((size_t)count * 4 * sizeof *tmp);
     if (!key || !tmp) {
-        free(key), free(tmp);
+        lu_free(key), lu_free(tmp);
         return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory sorting %d samples", count);
     }
     float e = fmaxf(lu_v3_maxc(ext), 1e-30f);
@@ -741,8 +741,8 @@ static lu_result sort_samples(float *pts, float *rad, int count, lu_vec3 lo, lu_
         memcpy(pts + 3 * (size_t)k, tmp + 3 * (size_t)i, 3 * sizeof *pts);
         rad[k] = tmp[(size_t)count * 3 + i];
     }
-    free(key);
-    free(tmp);
+    lu_free(key);
+    lu_free(tmp);
     return LU_OK;
 }
 
@@ -798,21 +798,21 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
     double c0g = cpu_seconds();
     int md = p->dirs < DDOD_MOMENT_DIRS ? p->dirs : DDOD_MOMENT_DIRS;
     lu_vec3 *mdirs = NULL;
-    if (r == LU_OK && !(T = calloc(g.count * 3, sizeof *T))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
-    if (r == LU_OK && !(mdirs = malloc((size_t)md * sizeof *mdirs))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    if (r == LU_OK && !(T = lu_calloc(g.count * 3, sizeof *T))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    if (r == LU_OK && !(mdirs = lu_malloc((size_t)md * sizeof *mdirs))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     if (r == LU_OK) {
         lu_ddod_directions(md, mdirs);
         r = first_moment(&g, mdirs, md, lu_v3_avg(sigma_t), T, err);
     }
-    free(mdirs);
+    lu_free(mdirs);
     double t1 = lu_time_seconds(), c1 = cpu_seconds();
 
     /* divergence -> local radius */
     int cnt = 0;
     double volume = 0.0;
-    if (r == LU_OK && !(radius = calloc(g.count, sizeof *radius))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    if (r == LU_OK && !(radius = lu_calloc(g.count, sizeof *radius))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     float *inv = NULL;
-    if (r == LU_OK && !(inv = malloc(g.count * sizeof *inv))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
+    if (r == LU_OK && !(inv = lu_malloc(g.count * sizeof *inv))) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     if (r == LU_OK) {
         float h2 = 2.0f * g.h;
         for (int z = 0; z < g.n[2]; z++)
@@ -847,7 +847,7 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
      * otherwise squash the map), then one common scale for the count. */
     int count = 0;
     if (r == LU_OK) {
-        float *sorted = malloc((size_t)cnt * sizeof *sorted);
+        float *sorted = lu_malloc((size_t)cnt * sizeof *sorted);
         if (!sorted) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
         if (r == LU_OK) {
             int k = 0;
@@ -856,7 +856,7 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
             int klo = (int)(0.02 * (cnt - 1)), khi = (int)(0.98 * (cnt - 1));
             float hi = select_kth(sorted, cnt, khi);
             float lo = select_kth(sorted, khi, klo); /* the first khi now hold the smaller values */
-            free(sorted);
+            lu_free(sorted);
             float base = (float)cbrt(volume / (2.0 * n_target));
             for (size_t v = 0; v < g.count; v++) {
                 if (inv[v] < 0.0f) continue;
@@ -873,12 +873,12 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
             lu_ddod_darts darts;
             r = lu_ddod_darts_draw(&f, candidates, p->seed + (uint32_t)mi * 7919u, &darts, err);
             for (int it = 0; it < 8 && r == LU_OK; it++) {
-                free(pts);
-                free(rad);
+                lu_free(pts);
+                lu_free(rad);
                 r = lu_ddod_darts_throw(&f, &darts, scale, &pv, &pts, &rad, &count, err);
                 if (r != LU_OK || count == 0) break;
                 double ratio = (double)count / n_target;
-                if (getenv("LUCENT_DDOD_DEBUG")) fprintf(stderr, "ddod: sampling pass %d: scale %.4f, %d samples\n", it, scale, count);
+                lu_log_msg(LU_LOG_DEBUG, "ddod: sampling pass %d: scale %.4f, %d samples\n", it, scale, count);
                 if (fabs(ratio - 1.0) <= 0.05) break;
                 scale *= (float)cbrt(ratio);
             }
@@ -889,21 +889,21 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
                                  lu_v3((float)g.n[0] * g.h, (float)g.n[1] * g.h, (float)g.n[2] * g.h), err);
         }
     }
-    free(inv);
+    lu_free(inv);
     double t3 = lu_time_seconds(), c3 = cpu_seconds();
 
     /* 4: attenuation per sample and direction, then SH */
     if (r == LU_OK) {
-        tau = malloc((size_t)count * p->dirs * sizeof *tau);
-        ft = malloc((size_t)count * p->dirs * sizeof *ft);
-        pj.vol = calloc((size_t)threads, sizeof *pj.vol);
-        pj.scratch = calloc((size_t)threads * 2, sizeof *pj.scratch);
+        tau = lu_malloc((size_t)count * p->dirs * sizeof *tau);
+        ft = lu_malloc((size_t)count * p->dirs * sizeof *ft);
+        pj.vol = lu_calloc((size_t)threads, sizeof *pj.vol);
+        pj.scratch = lu_calloc((size_t)threads * 2, sizeof *pj.scratch);
         if (!tau || !ft || !pj.vol || !pj.scratch) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
         bool grid = m->kind == LU_DENSITY_GRID;
         for (int t = 0; grid && r == LU_OK && t < threads; t++) {
-            pj.vol[t] = malloc(g.count * sizeof(float));
-            pj.scratch[2 * t] = malloc(max_slice(&g) * sizeof(float));
-            pj.scratch[2 * t + 1] = malloc(max_slice(&g) * sizeof(float));
+            pj.vol[t] = lu_malloc(g.count * sizeof(float));
+            pj.scratch[2 * t] = lu_malloc(max_slice(&g) * sizeof(float));
+            pj.scratch[2 * t + 1] = lu_malloc(max_slice(&g) * sizeof(float));
             if (!pj.vol[t] || !pj.scratch[2 * t] || !pj.scratch[2 * t + 1])
                 r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for per-thread sweeps");
         }
@@ -927,9 +927,9 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
     if (r == LU_OK) {
         int base = out->count;
         size_t total = (size_t)base + count;
-        float *ns = realloc(out->samples, total * LU_K_DDOD_SAMPLE_FLOATS * sizeof *ns);
+        float *ns = lu_realloc(out->samples, total * LU_K_DDOD_SAMPLE_FLOATS * sizeof *ns);
         if (ns) out->samples = ns;
-        float *nh = ns ? realloc(out->sh, total * out->stride * sizeof *nh) : NULL;
+        float *nh = ns ? lu_realloc(out->sh, total * out->stride * sizeof *nh) : NULL;
         if (nh) out->sh = nh;
         if (!ns || !nh) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for %zu samples", total);
         if (r == LU_OK) {
@@ -957,7 +957,7 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
             fit_c = cpu_seconds() - cf;
             out->timing.sampling_s += fit_s;
             int nc = out->bands * out->bands;
-            float *Y = r == LU_OK ? malloc((size_t)p->dirs * nc * sizeof *Y) : NULL;
+            float *Y = r == LU_OK ? lu_malloc((size_t)p->dirs * nc * sizeof *Y) : NULL;
             if (r == LU_OK && !Y) r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory for the SH table");
             for (int d = 0; r == LU_OK && d < p->dirs; d++) {
                 float y[LU_SH_MAX_COEFFS];
@@ -969,13 +969,12 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
             if (r == LU_OK) lu_parallel_for(count, 0, sh_samples, &sj, NULL);
             if (r == LU_OK && atomic_load(&sj.failed))
                 r = lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory in the SH projection");
-            free(Y);
+            lu_free(Y);
             out->count = (int)total;
         }
     }
     double t5 = lu_time_seconds() - fit_s, c5 = cpu_seconds() - fit_c;
-    if (getenv("LUCENT_DDOD_DEBUG"))
-        fprintf(stderr,
+    lu_log_msg(LU_LOG_DEBUG,
                 "ddod: medium %d processor s: voxel grid %.2f, moment sweeps %.2f, divergence %.2f, sampling %.2f, sample attenuation "
                 "%.2f, fit %.2f, SH %.2f\n",
                 mi, c0g - c0, c1 - c0g, c2 - c1, c3 - c2, c4 - c3, fit_c, c5 - c4);
@@ -984,16 +983,16 @@ static lu_result compute_medium(const lu_scene *scene, int mi, const lu_accel *o
     out->timing.sampling_s += t3 - t2;
     out->timing.sh_s += t5 - t4;
 
-    for (int t = 0; pj.vol && t < threads; t++) free(pj.vol[t]);
-    for (int t = 0; pj.scratch && t < 2 * threads; t++) free(pj.scratch[t]);
-    free(pj.vol);
-    free(pj.scratch);
-    free(tau);
-    free(ft);
-    free(pts);
-    free(rad);
-    free(radius);
-    free(T);
+    for (int t = 0; pj.vol && t < threads; t++) lu_free(pj.vol[t]);
+    for (int t = 0; pj.scratch && t < 2 * threads; t++) lu_free(pj.scratch[t]);
+    lu_free(pj.vol);
+    lu_free(pj.scratch);
+    lu_free(tau);
+    lu_free(ft);
+    lu_free(pts);
+    lu_free(rad);
+    lu_free(radius);
+    lu_free(T);
     vgrid_free(&g);
     if (boundary) lu_accel_destroy(boundary);
     return r;
@@ -1020,14 +1019,14 @@ lu_result lu_ddod_compute(const lu_scene *scene, const lu_ddod_params *p, lu_ddo
     out->channels = all_grey ? 1 : 3;
     out->stride = 2 * out->channels * p->bands * p->bands;
     double t0 = lu_time_seconds(), c0 = cpu_seconds();
-    lu_vec3 *dirs = malloc((size_t)p->dirs * sizeof *dirs);
+    lu_vec3 *dirs = lu_malloc((size_t)p->dirs * sizeof *dirs);
     if (!dirs) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     lu_ddod_directions(p->dirs, dirs);
     /* Opaque objects block: they join the optical depth as infinite. */
     lu_accel *opaque = NULL;
     int *object_of = NULL;
     lu_result r = lu_opaque_accel_build(scene, &opaque, &object_of, err);
-    free(object_of);
+    lu_free(object_of);
     for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
         lu_aabb b = lu_mesh_bounds(&scene->media[m].boundary);
         lu_vec3 e = lu_v3_sub(b.hi, b.lo);
@@ -1035,7 +1034,7 @@ lu_result lu_ddod_compute(const lu_scene *scene, const lu_ddod_params *p, lu_ddo
         r = compute_medium(scene, m, opaque, p, dirs, target > 16 ? target : 16, out, err);
     }
     if (opaque) lu_accel_destroy(opaque);
-    free(dirs);
+    lu_free(dirs);
     out->timing.total_s = lu_time_seconds() - t0;
     out->timing.cpu_s = cpu_seconds() - c0;
     if (r != LU_OK) lu_ddod_set_free(out);
@@ -1043,7 +1042,7 @@ lu_result lu_ddod_compute(const lu_scene *scene, const lu_ddod_params *p, lu_ddo
 }
 
 void lu_ddod_set_free(lu_ddod_set *s) {
-    free(s->samples);
-    free(s->sh);
+    lu_free(s->samples);
+    lu_free(s->sh);
     memset(s, 0, sizeof *s);
 }

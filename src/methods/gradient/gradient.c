@@ -31,26 +31,26 @@ void lu_gr_destroy(void *state) {
         if (st->dens) lu_grid_destroy(&st->dens[m]);
         if (st->fits) lu_gauss_fit_free(&st->fits[m]);
     }
-    free(st->dens);
-    free(st->fits);
-    free(st->smp);
-    free(st->tau);
-    free(st->E);
-    free(st->active);
-    free(st->Ev);
-    free(st->memo);
-    for (int L = 0; L < LU_GR_MEMO_LEVELS; L++) free(st->memo_map[L]);
-    free(st->final);
-    free(st->cell_begin);
-    free(st->cell_items);
-    free(st->field);
-    free(st);
+    lu_free(st->dens);
+    lu_free(st->fits);
+    lu_free(st->smp);
+    lu_free(st->tau);
+    lu_free(st->E);
+    lu_free(st->active);
+    lu_free(st->Ev);
+    lu_free(st->memo);
+    for (int L = 0; L < LU_GR_MEMO_LEVELS; L++) lu_free(st->memo_map[L]);
+    lu_free(st->final);
+    lu_free(st->cell_begin);
+    lu_free(st->cell_items);
+    lu_free(st->field);
+    lu_free(st);
 }
 
 lu_result lu_gr_prepare_mode(const lu_scene *scene, const double *params, int param_count,
                              const lu_param_desc *defaults, lu_backend backend, int mode, void **out, lu_error *err) {
     const char *who = mode == LU_K_GR_GRADIENT ? "gradient" : mode == LU_K_GR_RBF ? "rbf" : "pervoxel";
-    lu_gr_state *st = calloc(1, sizeof *st);
+    lu_gr_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", who);
     st->mode = mode;
     st->backend = backend;
@@ -72,8 +72,8 @@ lu_result lu_gr_prepare_mode(const lu_scene *scene, const double *params, int pa
     st->who = who;
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, (int)st->p[P_SHADOW_RES], true, err);
     size_t nm = scene->medium_count ? (size_t)scene->medium_count : 1u;
-    st->dens = calloc(nm, sizeof *st->dens);
-    st->fits = calloc(nm, sizeof *st->fits);
+    st->dens = lu_calloc(nm, sizeof *st->dens);
+    st->fits = lu_calloc(nm, sizeof *st->fits);
     if ((!st->dens || !st->fits) && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", who);
     if (r == LU_OK && backend == LU_BACKEND_GPU) r = lu_gradient_gpu_create(scene, &st->gpu, err);
     if (r != LU_OK) {
@@ -311,8 +311,8 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
 
     size_t nv = (size_t)G.nx * G.ny * G.nz;
     if (nv > st->field_cap) {
-        free(st->field);
-        st->field = malloc(nv * 3 * sizeof(float));
+        lu_free(st->field);
+        st->field = lu_malloc(nv * 3 * sizeof(float));
         st->field_cap = st->field ? nv : 0;
         if (!st->field) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory for a %zu-voxel radiance grid", st->who, nv);
     }
@@ -329,15 +329,15 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
         st->stats.ms_field = 1e3 * (t1 - t0);
         lu_parallel_for(c->height, 1, march_rows, st, NULL);
         st->stats.ms_march = 1e3 * (lu_time_seconds() - t1);
-        if (getenv("LUCENT_GRADIENT_STATS")) st->stats.uncovered = uncovered_fraction(st);
+        if (lu_log_enabled(LU_LOG_DEBUG)) st->stats.uncovered = uncovered_fraction(st);
     }
     if (r != LU_OK) return r;
     if (rebuild) {
         st->light_valid = true;
         lu_frame_rebuilt(frame, "gradient.radiance_grid");
     }
-    if (getenv("LUCENT_GRADIENT_STATS"))
-        fprintf(stderr,
+    if (lu_log_enabled(LU_LOG_DEBUG))
+        lu_log_msg(LU_LOG_DEBUG,
                 "%s: gaussians %d (fit rel-L2 %.4f, %.1f ms), roots %d (fill %d), evaluated %d, final samples %d, levels "
                 "%d/%d/%d/%d, "
                 "split %d/%d/%d, grid %dx%dx%d, cell items %lld, uncovered %.4f, ms samples %.2f field %.2f march "

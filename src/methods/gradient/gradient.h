@@ -43,7 +43,7 @@ typedef struct lu_gradient_stats {
     double fit_ms, reconstruct_ms; /* prepare: fit, and one reconstruction of D */
     double ms_samples, ms_field, ms_march;
     long long cell_items;
-    double uncovered;            /* CPU, with LUCENT_GRADIENT_STATS: fraction of dense voxels with a zero field */
+    double uncovered;            /* CPU, with lu_host.debug: fraction of dense voxels with a zero field */
     int grid[3];                 /* radiance grid */
 } lu_gradient_stats;
 

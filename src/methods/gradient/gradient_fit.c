@@ -91,12 +91,12 @@ lu_result lu_gauss_fit_grid(const lu_grid *grid, int max_count, float max_radius
     size_t nv = (size_t)grid->nx * grid->ny * grid->nz;
     memcpy(out->residual.data, grid->data, nv * sizeof(float));
     out->residual.index_to_world = grid->index_to_world;
-    out->g = malloc((max_count > 0 ? (size_t)max_count : 1u) * sizeof *out->g);
+    out->g = lu_malloc((max_count > 0 ? (size_t)max_count : 1u) * sizeof *out->g);
     fit_state fs = {&out->residual, (grid->nx + BLOCK - 1) / BLOCK, (grid->ny + BLOCK - 1) / BLOCK,
                     (grid->nz + BLOCK - 1) / BLOCK, NULL};
-    fs.bmax = malloc((size_t)fs.bx * fs.by * fs.bz * sizeof(float));
+    fs.bmax = lu_malloc((size_t)fs.bx * fs.by * fs.bz * sizeof(float));
     if (!out->g || !fs.bmax) {
-        free(fs.bmax);
+        lu_free(fs.bmax);
         lu_gauss_fit_free(out);
         return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory fitting Gaussians");
     }
@@ -145,7 +145,7 @@ lu_result lu_gauss_fit_grid(const lu_grid *grid, int max_count, float max_radius
         splat_one(&q, -1.0f, &out->residual, &fs);
         out->g[out->count++] = q;
     }
-    free(fs.bmax);
+    lu_free(fs.bmax);
     double res2 = 0.0;
     for (size_t i = 0; i < nv; i++) res2 += (double)out->residual.data[i] * out->residual.data[i];
     out->rel_l2 = norm2 > 0.0 ? sqrt(res2 / norm2) : 0.0;
@@ -165,7 +165,7 @@ lu_result lu_gauss_reconstruct(const lu_gauss_fit *fit, lu_grid *out, lu_error *
 }
 
 void lu_gauss_fit_free(lu_gauss_fit *fit) {
-    free(fit->g);
+    lu_free(fit->g);
     lu_grid_destroy(&fit->residual);
     memset(fit, 0, sizeof *fit);
 }

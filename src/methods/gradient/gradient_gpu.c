@@ -27,7 +27,7 @@ struct lu_gradient_gpu {
 
 lu_result lu_gradient_gpu_create(const lu_scene *scene, lu_gradient_gpu **out, lu_error *err) {
     *out = NULL;
-    lu_gradient_gpu *g = calloc(1, sizeof *g);
+    lu_gradient_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory");
     lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
     if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/gradient/gradient.comp", NULL, &g->prog, err);
@@ -46,7 +46,7 @@ void lu_gradient_gpu_destroy(lu_gradient_gpu *g) {
     lu_gpu_scene_destroy(g->scene);
     lu_gpu_program_destroy(g->prog);
     lu_gpu_context_destroy(g->ctx);
-    free(g);
+    lu_free(g);
 }
 
 static lu_result put(lu_gradient_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
@@ -99,11 +99,11 @@ lu_result lu_gradient_gpu_eval(lu_gradient_gpu *g, const lu_scene *scene, const 
     lu_result r = bind_common(g, scene, f, err);
     if (r == LU_OK) r = put(g, B_SAMPLES, f->samples + (size_t)first * LU_K_GR_SAMPLE_FLOATS, (size_t)count * rec, err);
     /* E/tau pairs: tau goes in, (E, tau) come out */
-    float *et = malloc((size_t)count * 2 * sizeof(float));
+    float *et = lu_malloc((size_t)count * 2 * sizeof(float));
     if (!et) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory");
     for (int i = 0; i < count; i++) et[2 * i] = 0.0f, et[2 * i + 1] = tau_in[i];
     if (r == LU_OK) r = put(g, B_ET, et, (size_t)count * 2 * sizeof(float), err);
-    free(et);
+    lu_free(et);
     if (r != LU_OK) return r;
     lu_gpu_uniform_int(g->prog, "u_pass", PASS_EVAL);
     lu_gpu_uniform_int(g->prog, "u_count", count);
@@ -126,11 +126,11 @@ lu_result lu_gradient_gpu_view_tau(lu_gradient_gpu *g, const lu_scene *scene, co
     lu_gpu_uniform_int(g->prog, "u_pass", PASS_TAU);
     lu_gpu_uniform_int(g->prog, "u_count", count);
     r = lu_gpu_dispatch(g->prog, (unsigned)(count + 63) / 64, 1, 1, err);
-    float *et = r == LU_OK ? malloc((size_t)count * 2 * sizeof(float)) : NULL;
+    float *et = r == LU_OK ? lu_malloc((size_t)count * 2 * sizeof(float)) : NULL;
     if (r == LU_OK && !et) r = lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory");
     if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_ET], 0, et, (size_t)count * 2 * sizeof(float), err);
     for (int i = 0; r == LU_OK && i < count; i++) tau[i] = et[2 * i + 1];
-    free(et);
+    lu_free(et);
     return r;
 }
 

@@ -16,15 +16,15 @@ static lu_result grow(lu_gr_state *st, int need, lu_error *err) {
     if (need <= st->cap) return LU_OK;
     int cap = st->cap ? st->cap : 1024;
     while (cap < need) cap *= 2;
-    float *s = realloc(st->smp, (size_t)cap * LU_K_GR_SAMPLE_FLOATS * sizeof(float));
+    float *s = lu_realloc(st->smp, (size_t)cap * LU_K_GR_SAMPLE_FLOATS * sizeof(float));
     if (s) st->smp = s;
-    float *t = realloc(st->tau, (size_t)cap * sizeof(float));
+    float *t = lu_realloc(st->tau, (size_t)cap * sizeof(float));
     if (t) st->tau = t;
-    float *e = realloc(st->E, (size_t)cap * sizeof(float));
+    float *e = lu_realloc(st->E, (size_t)cap * sizeof(float));
     if (e) st->E = e;
-    unsigned char *a = realloc(st->active, (size_t)cap);
+    unsigned char *a = lu_realloc(st->active, (size_t)cap);
     if (a) st->active = a;
-    float *v = realloc(st->Ev, (size_t)cap * sizeof(float));
+    float *v = lu_realloc(st->Ev, (size_t)cap * sizeof(float));
     if (v) st->Ev = v;
     if (!s || !t || !e || !a || !v) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for %d samples", need);
     st->cap = cap;
@@ -156,13 +156,13 @@ static lu_result eval_records(lu_gr_state *st, const lu_scene *scene, float *rec
     if (st->backend == LU_BACKEND_GPU) {
         st->frame.samples = rec;
         st->frame.sample_count = count;
-        float *et = malloc((size_t)count * 3 * sizeof(float));
+        float *et = lu_malloc((size_t)count * 3 * sizeof(float));
         if (!et) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory");
         float *ones = et + 2 * (size_t)count;
         for (int i = 0; i < count; i++) ones[i] = 1.0f;
         lu_result r = lu_gradient_gpu_eval(st->gpu, scene, &st->frame, 0, count, want_error, ones, et, err);
         for (int i = 0; r == LU_OK && i < count; i++) ev[i] = et[2 * i];
-        free(et);
+        lu_free(et);
         return r;
     }
     eval_job job = {st, rec, ev, want_error};
@@ -211,8 +211,8 @@ static lu_result memo_reset(lu_gr_state *st, int levels, lu_error *err) {
             nv = (size_t)n[0] * n[1] * n[2];
         }
         if (nv > st->memo_map_cap[L]) {
-            free(st->memo_map[L]);
-            st->memo_map[L] = malloc(nv * sizeof(int));
+            lu_free(st->memo_map[L]);
+            st->memo_map[L] = lu_malloc(nv * sizeof(int));
             st->memo_map_cap[L] = st->memo_map[L] ? nv : 0;
             if (!st->memo_map[L]) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for kept samples");
         }
@@ -231,8 +231,8 @@ static lu_result children(lu_gr_state *st, const lu_scene *scene, int level, int
                           int want_error, lu_error *err) {
     int count = st->n - first, miss = 0;
     int *map = st->memo_map[level];
-    float *rec = malloc(((size_t)count * (LU_K_GR_SAMPLE_FLOATS + 1) + 1) * sizeof(float));
-    int *which = malloc(((size_t)count + 1) * sizeof(int));
+    float *rec = lu_malloc(((size_t)count * (LU_K_GR_SAMPLE_FLOATS + 1) + 1) * sizeof(float));
+    int *which = lu_malloc(((size_t)count + 1) * sizeof(int));
     lu_result r = rec && which ? LU_OK : lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory splitting");
     for (int c = 0; c < count && r == LU_OK; c++) {
         int j = first + c, m = map[vertex[c]];
@@ -250,7 +250,7 @@ static lu_result children(lu_gr_state *st, const lu_scene *scene, int level, int
     if (r == LU_OK && st->memo_n + miss > st->memo_cap) {
         int cap = st->memo_cap ? st->memo_cap : 4096;
         while (cap < st->memo_n + miss) cap *= 2;
-        float *p = realloc(st->memo, (size_t)cap * MEMO_FLOATS * sizeof(float));
+        float *p = lu_realloc(st->memo, (size_t)cap * MEMO_FLOATS * sizeof(float));
         if (p) st->memo = p, st->memo_cap = cap;
         else r = lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for kept samples");
     }
@@ -264,8 +264,8 @@ static lu_result children(lu_gr_state *st, const lu_scene *scene, int level, int
         m[LU_K_GR_SAMPLE_FLOATS] = ev[k];
         map[vertex[which[k]]] = st->memo_n++;
     }
-    free(rec);
-    free(which);
+    lu_free(rec);
+    lu_free(which);
     return r;
 }
 
@@ -295,7 +295,7 @@ static lu_result split_level(lu_gr_state *st, int level, int first, int count, d
     size_t nv = (size_t)n[0] * n[1] * n[2];
     int children = 0, cap = 0;
     *vertex = NULL;
-    unsigned char *mark = calloc(nv, 1);
+    unsigned char *mark = lu_calloc(nv, 1);
     if (!mark) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory splitting");
     int splits = 0;
     lu_result r = LU_OK;
@@ -326,14 +326,14 @@ static lu_result split_level(lu_gr_state *st, int level, int first, int count, d
                     r = add_sample(st, q, h, 1.0f, h / 3.0f, tau, err);
                     if (r == LU_OK && children == cap) {
                         cap = cap ? 2 * cap : 1024;
-                        int *v = realloc(*vertex, (size_t)cap * sizeof(int));
+                        int *v = lu_realloc(*vertex, (size_t)cap * sizeof(int));
                         if (v) *vertex = v;
                         else r = lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory splitting");
                     }
                     if (r == LU_OK) (*vertex)[children++] = (int)id;
                 }
     }
-    free(mark);
+    lu_free(mark);
     if (level < 4) st->stats.split[level] = splits;
     return r;
 }
@@ -344,8 +344,8 @@ static lu_result build_cells(lu_gr_state *st, lu_error *err) {
     lu_k_gr_params *G = &st->kctx.G;
     int nc = G->cx * G->cy * G->cz;
     if ((size_t)nc + 1 > st->cells_cap) {
-        free(st->cell_begin);
-        st->cell_begin = malloc(((size_t)nc + 1) * sizeof(int));
+        lu_free(st->cell_begin);
+        st->cell_begin = lu_malloc(((size_t)nc + 1) * sizeof(int));
         st->cells_cap = st->cell_begin ? (size_t)nc + 1 : 0;
         if (!st->cell_begin) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for cell lists");
     }
@@ -357,12 +357,12 @@ static lu_result build_cells(lu_gr_state *st, lu_error *err) {
             for (int c = 0; c < nc; c++) st->cell_begin[c + 1] += st->cell_begin[c];
             size_t items = (size_t)st->cell_begin[nc];
             if (items > st->items_cap) {
-                free(st->cell_items);
-                st->cell_items = malloc((items ? items : 1) * sizeof(int));
+                lu_free(st->cell_items);
+                st->cell_items = lu_malloc((items ? items : 1) * sizeof(int));
                 st->items_cap = st->cell_items ? items : 0;
                 if (!st->cell_items) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for cell lists");
             }
-            fillp = calloc((size_t)nc, sizeof(int));
+            fillp = lu_calloc((size_t)nc, sizeof(int));
             if (!fillp) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory for cell lists");
         }
         for (int j = 0; j < st->nfinal; j++) {
@@ -394,7 +394,7 @@ static lu_result build_cells(lu_gr_state *st, lu_error *err) {
                         else st->cell_items[st->cell_begin[c] + fillp[c]++] = j;
                     }
         }
-        free(fillp);
+        lu_free(fillp);
     }
     st->stats.cell_items = st->cell_begin[nc];
     return LU_OK;
@@ -438,13 +438,13 @@ lu_result lu_gr_build_samples(lu_gr_state *st, const lu_scene *scene, int levels
             for (int j = first; j < st->n && more; j++) st->E[j] = st->Ev[j] * st->tau[j];
             st->stats.level_samples[level + 1] = count;
         }
-        free(vertex);
+        lu_free(vertex);
         if (count == 0) break;
     }
     if (r != LU_OK) return r;
     /* The final set: every sample not split, over all levels. */
-    free(st->final);
-    st->final = malloc((st->n ? (size_t)st->n : 1u) * LU_K_GR_SAMPLE_FLOATS * sizeof(float));
+    lu_free(st->final);
+    st->final = lu_malloc((st->n ? (size_t)st->n : 1u) * LU_K_GR_SAMPLE_FLOATS * sizeof(float));
     if (!st->final) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", st->who);
     st->nfinal = 0;
     for (int j = 0; j < st->n; j++)
@@ -461,8 +461,8 @@ lu_result lu_gr_empty_cells(lu_gr_state *st, lu_error *err) {
     st->nfinal = 0;
     size_t nc = (size_t)G->cx * G->cy * G->cz + 1;
     if (nc > st->cells_cap) {
-        free(st->cell_begin);
-        st->cell_begin = calloc(nc, sizeof(int));
+        lu_free(st->cell_begin);
+        st->cell_begin = lu_calloc(nc, sizeof(int));
         st->cells_cap = st->cell_begin ? nc : 0;
         if (!st->cell_begin) return lu_fail(err, LU_ERR_NOMEM, "pervoxel: out of memory");
     } else {

@@ -1046,7 +1046,7 @@ static void print_stats(const pt_stats *per_thread, int threads) {
         t.beam_vertices += c->beam_vertices;
     }
     double p = t.paths ? (double)t.paths : 1.0, e = t.entries ? (double)t.entries : 1.0;
-    fprintf(stderr,
+    lu_log_msg(LU_LOG_INFO,
             "pathtrace stats: %llu paths; per path: %.2f segments, %.2f volume vertices (%.2f in sealed media), "
             "%.3f entries, %.2f boundary hits from inside, %.2f internal reflections (%.2f total), %.3f exits, "
             "%.2f beam-connected vertices; per entry: %.1f sealed vertices, %.2f internal reflections; "

@@ -69,12 +69,12 @@ static void rm_destroy(void *state) {
     if (!st) return;
     lu_raymarch_gpu_destroy(st->gpu);
     lu_media_rays_free(&st->mr);
-    free(st);
+    lu_free(st);
 }
 
 static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                             lu_error *err) {
-    rm_state *st = calloc(1, sizeof *st);
+    rm_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     st->backend = backend;
     st->steps = (int)params[P_STEPS];

@@ -19,7 +19,7 @@ struct lu_raymarch_gpu {
 
 lu_result lu_raymarch_gpu_create(const lu_scene *scene, lu_raymarch_gpu **out, lu_error *err) {
     *out = NULL;
-    lu_raymarch_gpu *g = calloc(1, sizeof *g);
+    lu_raymarch_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
     if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/raymarch/raymarch.comp", NULL, &g->prog, err);
@@ -38,7 +38,7 @@ void lu_raymarch_gpu_destroy(lu_raymarch_gpu *g) {
     lu_gpu_scene_destroy(g->scene);
     lu_gpu_program_destroy(g->prog);
     lu_gpu_context_destroy(g->ctx);
-    free(g);
+    lu_free(g);
 }
 
 /* Uploads into slot i (growing it when needed) and binds it above the scene's bindings. */

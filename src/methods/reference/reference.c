@@ -308,7 +308,7 @@ static lu_vec3 surface_radiance(ref_state *st, thread_scratch *ts, lu_vec3 x, lu
 static bool track_push(track *tr, piece p) {
     if (tr->count == tr->capacity) {
         int cap = tr->capacity ? 2 * tr->capacity : 256;
-        piece *np = realloc(tr->pieces, (size_t)cap * sizeof *np);
+        piece *np = lu_realloc(tr->pieces, (size_t)cap * sizeof *np);
         if (!np) return false;
         tr->pieces = np;
         tr->capacity = cap;
@@ -551,19 +551,19 @@ static void ref_destroy(void *state) {
         if (st->media[m].boundary) lu_accel_destroy(st->media[m].boundary);
     if (st->scratch)
         for (int t = 0; t < st->threads; t++) {
-            for (int m = 0; m < st->medium_count; m++) free(st->scratch[t].tracks[m].pieces);
-            free(st->scratch[t].tracks);
+            for (int m = 0; m < st->medium_count; m++) lu_free(st->scratch[t].tracks[m].pieces);
+            lu_free(st->scratch[t].tracks);
         }
-    free(st->scratch);
-    free(st->media);
-    free(st->opaque_object);
-    free(st->klights);
-    free(st);
+    lu_free(st->scratch);
+    lu_free(st->media);
+    lu_free(st->opaque_object);
+    lu_free(st->klights);
+    lu_free(st);
 }
 
 static lu_result ref_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                              lu_error *err) {
-    ref_state *st = calloc(1, sizeof *st);
+    ref_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
     st->spp = (int)params[P_SPP];
     st->steps = (float)params[P_STEPS];
@@ -577,7 +577,7 @@ static lu_result ref_prepare(const lu_scene *scene, const double *params, lu_bac
     r = lu_opaque_accel_build(scene, &st->opaque, &st->opaque_object, err);
 
     st->medium_count = scene->medium_count;
-    st->media = calloc((size_t)(scene->medium_count ? scene->medium_count : 1), sizeof *st->media);
+    st->media = lu_calloc((size_t)(scene->medium_count ? scene->medium_count : 1), sizeof *st->media);
     if (!st->media && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
     for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
         const lu_medium *med = &scene->media[m];
@@ -593,10 +593,10 @@ static lu_result ref_prepare(const lu_scene *scene, const double *params, lu_bac
     }
 
     st->threads = lu_thread_count();
-    st->scratch = calloc((size_t)st->threads, sizeof *st->scratch);
+    st->scratch = lu_calloc((size_t)st->threads, sizeof *st->scratch);
     if (!st->scratch && r == LU_OK) r = lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
     for (int t = 0; t < st->threads && r == LU_OK; t++) {
-        st->scratch[t].tracks = calloc((size_t)(scene->medium_count ? scene->medium_count : 1), sizeof(track));
+        st->scratch[t].tracks = lu_calloc((size_t)(scene->medium_count ? scene->medium_count : 1), sizeof(track));
         if (!st->scratch[t].tracks) r = lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
     }
     if (r != LU_OK) {
@@ -619,8 +619,8 @@ static lu_result ref_render(void *state, const lu_frame *frame, lu_image *out, l
     st->overflow = false;
     const lu_camera *c = &scene->camera;
     st->cam = frame->rec->cam;
-    free(st->klights);
-    st->klights = calloc((size_t)(scene->light_count ? scene->light_count : 1), sizeof *st->klights);
+    lu_free(st->klights);
+    st->klights = lu_calloc((size_t)(scene->light_count ? scene->light_count : 1), sizeof *st->klights);
     if (!st->klights) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
     for (int l = 0; l < scene->light_count; l++) st->klights[l] = lu_light_to_kernel(&scene->lights[l]);
     lu_parallel_for(c->height, 1, render_rows, st, "reference");

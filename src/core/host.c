@@ -1,0 +1,117 @@
+/* The host's hooks (lu_host): the one choke point of the library's memory,
+ * its log, and the version query. Set once, before other calls, so the hot
+ * paths read the hooks without a lock. */
+#include <lucent/core.h>
+
+#include <stdarg.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/core_internal.h"
+
+static lu_host g_host;
+/* Allocations made through the current allocator and not yet freed: a new
+ * allocator is refused while its predecessor's memory is alive. */
+static atomic_llong g_live;
+
+uint32_t lu_version(void) { return (uint32_t)LU_VERSION; }
+const char *lu_version_string(void) { return LU_VERSION_STRING; }
+
+void *lu_malloc(size_t size) {
+    void *p = g_host.alloc ? g_host.alloc(size ? size : 1, g_host.user) : malloc(size ? size : 1);
+    if (p) atomic_fetch_add_explicit(&g_live, 1, memory_order_relaxed);
+    return p;
+}
+
+void *lu_calloc(size_t count, size_t size) {
+    if (size && count > SIZE_MAX / size) return NULL;
+    size_t n = count * size;
+    if (!g_host.alloc) {
+        void *p = calloc(n ? n : 1, 1);
+        if (p) atomic_fetch_add_explicit(&g_live, 1, memory_order_relaxed);
+        return p;
+    }
+    void *p = lu_malloc(n);
+    if (p) memset(p, 0, n);
+    return p;
+}
+
+void *lu_realloc(void *ptr, size_t size) {
+    if (!ptr) return lu_malloc(size);
+    return g_host.realloc ? g_host.realloc(ptr, size ? size : 1, g_host.user) : realloc(ptr, size ? size : 1);
+}
+
+void lu_free(void *ptr) {
+    if (!ptr) return;
+    atomic_fetch_sub_explicit(&g_live, 1, memory_order_relaxed);
+    if (g_host.free) g_host.free(ptr, g_host.user);
+    else free(ptr);
+}
+
+char *lu_strdup(const char *s) {
+    size_t n = strlen(s) + 1;
+    char *p = lu_malloc(n);
+    if (p) memcpy(p, s, n);
+    return p;
+}
+
+/* ---- the log ----------------------------------------------------------- */
+
+bool lu_log_enabled(lu_log_level level) {
+    if (level == LU_LOG_DEBUG) return g_host.debug;
+    if (level == LU_LOG_PROGRESS || level == LU_LOG_INFO) return !g_host.quiet;
+    return true;
+}
+
+void lu_log_msg(lu_log_level level, const char *fmt, ...) {
+    if (!lu_log_enabled(level)) return;
+    char text[2048];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(text, sizeof text, fmt, ap);
+    va_end(ap);
+    if (g_host.log) {
+        g_host.log(level, text, g_host.user);
+    } else {
+        fputs(text, stderr);
+        if (level == LU_LOG_PROGRESS) fflush(stderr);
+    }
+}
+
+/* ---- lu_host_set ----------------------------------------------------------- */
+
+lu_result lu_host_set(const lu_host *host, lu_error *err) {
+    static const lu_host k_default;
+    const lu_host *h = host ? host : &k_default;
+    int hooks = (h->alloc != NULL) + (h->realloc != NULL) + (h->free != NULL);
+    if (hooks != 0 && hooks != 3)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "host: alloc, realloc and free are set together or not at all");
+    if (h->threads < 0 || h->threads > LU_MAX_THREADS)
+        return lu_fail(err, LU_ERR_RANGE, "host: threads = %d outside [0, %d] (0 = automatic)", h->threads,
+                       LU_MAX_THREADS);
+    if (h->gpu != LU_GPU_CHOICE_AUTO && h->gpu != LU_GPU_CHOICE_HARDWARE && h->gpu != LU_GPU_CHOICE_SOFTWARE)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "host: gpu = %d is not an lu_gpu_choice", (int)h->gpu);
+    if (h->gpu_device_only && (h->gpu_device < 0 || h->gpu_device >= 16))
+        return lu_fail(err, LU_ERR_RANGE, "host: gpu_device = %d outside [0, 15]", h->gpu_device);
+    bool same_alloc = h->alloc == g_host.alloc && h->realloc == g_host.realloc && h->free == g_host.free &&
+                      (h->alloc == NULL || h->user == g_host.user);
+    if (!same_alloc && atomic_load(&g_live) > 0)
+        return lu_fail(err, LU_ERR_INVALID_ARG,
+                       "host: the allocator cannot change while %lld allocations of the previous one are alive",
+                       (long long)atomic_load(&g_live));
+    lu_result r = lu_set_thread_count(h->threads, err);
+    if (r == LU_OK) r = lu_set_cache_dir(h->cache_dir, err);
+    if (r != LU_OK) return r;
+    g_host = *h;
+    g_host.cache_dir = NULL;   /* the library's copy lives in the cache module */
+    if (!same_alloc) atomic_store(&g_live, 0);
+    return LU_OK;
+}
+
+void lu_host_get(lu_host *out) {
+    *out = g_host;
+    out->threads = lu_thread_count();
+    out->cache_dir = lu_cache_dir_copy();
+}
