@@ -81,7 +81,7 @@ static double annulus_mean(const lu_k_diffusion *k, const opts *o, int ch, doubl
 }
 
 typedef struct mc_summary {
-    double total[3], stderr_[3], t_total[3], multiple[3];
+    double total[3], stderr_[3], t_total[3], multiple[3], unreflected[3];
     double rel_l2_ms[3];       /* model vs multiply scattered light only */
     double rel_l2[3];          /* model vs walk over [0, r_max], area-weighted */
     double mean_rel[3];        /* energy-weighted mean |model - walk| / walk over the bins: sum |M - W| / sum W of bin powers */
@@ -152,6 +152,7 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
             ms->stderr_[c] = res.r_stderr;
             ms->t_total[c] = res.t_total;
             ms->multiple[c] = res.r_multiple_total;
+            ms->unreflected[c] = res.r_multiple_unreflected_total;
             mc_r[c] = res.r_profile;
             mc_t[c] = res.t_profile;
             mc_m[c] = res.r_multiple;
@@ -186,6 +187,10 @@ static int run_one(const char *name, lu_vec3 ss, lu_vec3 sa, float eta, opts *o,
                        ms->t_total[2]);
             printf("    multiple scattering only  %10.6f %10.6f %10.6f\n", ms->multiple[0], ms->multiple[1],
                    ms->multiple[2]);
+            /* the part a path tracer joining vertices to the light's beams by
+             * straight segments reaches (docs/bssrdf.md) */
+            printf("    multiple, no 1-2 reflection %8.6f %10.6f %10.6f\n", ms->unreflected[0], ms->unreflected[1],
+                   ms->unreflected[2]);
             printf("    model rel-L2 on [0, r_max] %9.4f %10.4f %10.4f  (all light)\n", ms->rel_l2[0], ms->rel_l2[1],
                    ms->rel_l2[2]);
             printf("    model mean rel. error      %9.4f %10.4f %10.4f  (energy-weighted over the bins, all light)\n",

@@ -14,10 +14,21 @@
       The colour scale of `ratio` as a 256 x 16 strip (left 0, right R).
   mean IMG.pfm
       Mean of each channel.
-  boxcmp A.pfm REF.pfm [--box K]
+  boxcmp A.pfm REF.pfm [--box K] [--mask M.pfm [--outside]] [--ratio]
       rel-L2 of A against REF after averaging both over K x K blocks (default 4;
       a partial block at the edge is dropped), which tames a noisy REF's
       per-pixel variance (by about K) while keeping structure coarser than K.
+      `lucent compare --block K` computes the same over the whole image.
+      --mask: only the blocks in which every pixel of M is non-zero (with
+      --outside: every pixel zero), e.g. an object without its silhouette.
+      --ratio: print the mean ratio sum A / sum REF over those blocks too.
+  exitance W:MU:IMG.pfm ...
+      Exitance 2 pi sum_k W_k MU_k L_k per channel, L_k the mean radiance of
+      an image seen from direction cosine MU_k: quadrature of the radiance
+      leaving a uniformly lit surface over the hemisphere (W, MU: Gauss-
+      Legendre weights and nodes on [0, 1]).
+  average OUT.pfm A.pfm B.pfm ...
+      The pixel-wise mean of the images (independent renders of one scene).
   png IMG.pfm OUT.png [--exposure E]
   pair A.pfm B.pfm OUT.png [--exposure E]
       Display PNG (2^E scale, exact sRGB curve, clamped); pair puts A and B
@@ -42,6 +53,15 @@ def read_pfm(path):
     if c == 1:
         rows = [[v for v in r for _ in range(3)] for r in rows]
     return w, h, [v for r in rows for v in r]
+
+
+def write_pfm(path, w, h, rgb):
+    rows = [rgb[(h - 1 - y) * w * 3:(h - y) * w * 3] for y in range(h)]  # bottom-up
+    with open(path + ".tmp", "wb") as f:
+        f.write(b"PF\n%d %d\n-1\n" % (w, h))
+        f.write(struct.pack("<%df" % (w * h * 3), *[v for r in rows for v in r]))
+    import os
+    os.replace(path + ".tmp", path)
 
 
 def write_png(path, w, h, rgb8):
@@ -191,9 +211,19 @@ def cmd_boxcmp(args):
     w, h, a = read_pfm(args[0])
     w2, h2, b = read_pfm(args[1])
     assert (w, h) == (w2, h2), "images differ in size"
-    num = den = 0.0
+    mask = None
+    if "--mask" in args:
+        wm, hm, mask = read_pfm(args[args.index("--mask") + 1])
+        assert (wm, hm) == (w, h), "mask differs in size"
+    outside = "--outside" in args
+    num = den = suma = sumb = 0.0
     for by in range(h // k):
         for bx in range(w // k):
+            if mask is not None:
+                inside = [any(mask[(y * w + x) * 3 + c] != 0 for c in range(3))
+                          for y in range(by * k, by * k + k) for x in range(bx * k, bx * k + k)]
+                if not (all(inside) if not outside else not any(inside)):
+                    continue
             for c in range(3):
                 sa = sb = 0.0
                 for y in range(by * k, by * k + k):
@@ -202,12 +232,37 @@ def cmd_boxcmp(args):
                         sb += b[(y * w + x) * 3 + c]
                 num += (sa - sb) ** 2
                 den += sb * sb
-    print("%.6g" % math.sqrt(num / den))
+                suma += sa
+                sumb += sb
+    if den == 0:
+        sys.exit("boxcmp: REF is zero over the selected blocks (or none were selected)")
+    if "--ratio" in args:
+        print("%.6g %.6g" % (math.sqrt(num / den), suma / sumb))
+    else:
+        print("%.6g" % math.sqrt(num / den))
+
+
+def cmd_exitance(args):
+    m = [0.0, 0.0, 0.0]
+    for a in args:
+        w, mu, path = a.split(":", 2)
+        iw, ih, d = read_pfm(path)
+        for c in range(3):
+            m[c] += 2 * math.pi * float(w) * float(mu) * sum(d[c::3]) / (iw * ih)
+    print(" ".join("%.4f" % v for v in m))
+
+
+def cmd_average(args):
+    imgs = [read_pfm(p) for p in args[1:]]
+    w, h, _ = imgs[0]
+    assert all((i[0], i[1]) == (w, h) for i in imgs), "images differ in size"
+    n = len(imgs)
+    write_pfm(args[0], w, h, [sum(v) / n for v in zip(*(i[2] for i in imgs))])
 
 
 if __name__ == "__main__":
     cmds = {"ratio": cmd_ratio, "noise": cmd_noise, "bar": cmd_bar, "mean": cmd_mean, "png": cmd_png,
-            "pair": cmd_pair, "boxcmp": cmd_boxcmp}
+            "pair": cmd_pair, "boxcmp": cmd_boxcmp, "average": cmd_average, "exitance": cmd_exitance}
     if len(sys.argv) < 2 or sys.argv[1] not in cmds:
         sys.stderr.write(__doc__)
         sys.exit(2)

@@ -522,6 +522,63 @@ static void test_metrics_closed_form(void) {
     lu_image_destroy(&c);
 }
 
+/* Block averages by hand, and what they are for: pixel noise of zero mean
+ * within each block vanishes, so two images differing by it compare equal. */
+static void test_block_average_and_mean_ratio(void) {
+    lu_error err;
+    lu_image a, b, ab, bb;
+    lu_metrics m;
+    enum { W = 7, H = 5 }; /* 3 x 2 blocks of 2 x 2; column 6 and row 4 are dropped */
+    CHECK_OK(lu_image_create(&a, W, H, &err), &err);
+    CHECK_OK(lu_image_create(&b, W, H, &err), &err);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            for (int c = 0; c < 3; c++) {
+                float base = (float)(1 + x / 2 + 10 * (y / 2) + 100 * c);
+                lu_image_px(&b, x, y)[c] = base;
+                /* +-0.5 checkerboard: zero mean over every 2 x 2 block */
+                lu_image_px(&a, x, y)[c] = base + (((x + y) & 1) ? 0.5f : -0.5f);
+            }
+    lu_image_px(&a, 6, 0)[0] = 1e6f; /* outside every whole block */
+    CHECK_OK(lu_image_block_average(&a, 2, &ab, &err), &err);
+    CHECK_OK(lu_image_block_average(&b, 2, &bb, &err), &err);
+    CHECK(ab.width == 3 && ab.height == 2);
+    for (int by = 0; by < 2; by++)
+        for (int bx = 0; bx < 3; bx++)
+            for (int c = 0; c < 3; c++) {
+                CHECK_NEAR(lu_image_px(&ab, bx, by)[c], 1 + bx + 10 * by + 100 * c, 1e-5);
+                CHECK_NEAR(lu_image_px(&bb, bx, by)[c], 1 + bx + 10 * by + 100 * c, 1e-5);
+            }
+    CHECK_OK(lu_image_compare(&ab, &bb, &m, &err), &err);
+    CHECK(m.rel_l2 == 0 && m.mean_ratio == 1);
+    lu_image_destroy(&ab);
+    lu_image_destroy(&bb);
+    CHECK(lu_image_block_average(&a, 6, &ab, &err) == LU_ERR_INVALID_ARG);
+    CHECK(strstr(err.message, "block size 6 not in [1, 5]") != NULL);
+    CHECK(lu_image_block_average(&a, 0, &ab, &err) == LU_ERR_INVALID_ARG);
+    CHECK_OK(lu_image_block_average(&a, 1, &ab, &err), &err); /* k = 1 is a copy */
+    CHECK(ab.width == W && ab.height == H && memcmp(ab.rgb, a.rgb, sizeof(float) * W * H * 3) == 0);
+    lu_image_destroy(&ab);
+
+    /* mean ratio: a = 2 b in red, = b in green, 0 in blue. */
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            float *pa = lu_image_px(&a, x, y), *pb = lu_image_px(&b, x, y);
+            pa[0] = 2 * pb[0], pa[1] = pb[1], pa[2] = 0;
+        }
+    CHECK_OK(lu_image_compare(&a, &b, &m, &err), &err);
+    double s[3] = {0};
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            for (int c = 0; c < 3; c++) s[c] += lu_image_px(&b, x, y)[c];
+    CHECK_NEAR(m.mean_ratio_rgb[0], 2.0, 1e-12);
+    CHECK_NEAR(m.mean_ratio_rgb[1], 1.0, 1e-12);
+    CHECK_NEAR(m.mean_ratio_rgb[2], 0.0, 1e-12);
+    CHECK_NEAR(m.mean_ratio, (2 * s[0] + s[1]) / (s[0] + s[1] + s[2]), 1e-12);
+    lu_image_destroy(&a);
+    lu_image_destroy(&b);
+}
+
 static void test_false_colour(void) {
     lu_error err;
     lu_image a, b, out;
@@ -586,6 +643,7 @@ int main(void) {
     RUN_TEST(test_png_malformed);
     RUN_TEST(test_missing_and_unwritable);
     RUN_TEST(test_metrics_closed_form);
+    RUN_TEST(test_block_average_and_mean_ratio);
     RUN_TEST(test_false_colour);
     TEST_EXIT();
 }

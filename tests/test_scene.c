@@ -3,11 +3,13 @@
 #include <lucent/lucent.h>
 
 #include <dirent.h>
+#include <math.h>
 #include <sys/stat.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "lu_test.h"
+#include "methods/bssrdf/bssrdf_profile.h"
 
 #define CAMERA "\"camera\": {\"position\": [0, 0, 5], \"look_at\": [0, 0, 0], \"width\": 8, \"height\": 8}"
 
@@ -316,6 +318,63 @@ static void test_bundled_scenes_load(void) {
     CHECK(n >= 9);
 }
 
+/* The ablation's half-space stand-in (docs/bssrdf.md, "Where the error comes
+ * from") is one only if the marble below every visible point is at least
+ * 5 diffusion lengths 1/sigma_tr deep in its most translucent channel (light
+ * left at the bottom: e^-5 of the lateral flux), and at least r_max of it lies
+ * around every visible point. sigma_tr from the preset's published
+ * coefficients; r_max from the dipole table the renderer builds; the visible
+ * region from the camera's frustum corners on the top face. */
+static void test_ablation_halfspace_is_deep_and_wide(void) {
+    lu_scene s;
+    lu_error err = {0};
+    CHECK_OK(lu_scene_load(LU_SOURCE_DIR "/scenes/ablate_halfspace.json", &s, &err), &err);
+    if (err.code != LU_OK) return;
+    CHECK(s.object_count == 1 && s.objects[0].material.type == LU_MATERIAL_TRANSLUCENT);
+    const lu_material *m = &s.objects[0].material;
+    const lu_material_preset *p = lu_material_preset_find(m->preset);
+    CHECK(p != NULL);
+    if (!p) return;
+    double str_min = INFINITY; /* the most translucent channel, per mm */
+    for (int c = 0; c < 3; c++) {
+        double sa = p->sigma_a[c], st = sa + p->sigma_s_prime[c];
+        str_min = fmin(str_min, sqrt(3 * sa * st));
+    }
+    lu_aabb box = lu_aabb_empty();
+    for (uint32_t v = 0; v < s.objects[0].mesh.vertex_count; v++) lu_aabb_grow(&box, s.objects[0].mesh.positions[v]);
+    const double mm = m->mm_per_unit;
+    CHECK_MSG((box.hi.y - box.lo.y) * mm >= 5 / str_min, "depth %.1f mm < 5/sigma_tr = %.1f mm",
+              (box.hi.y - box.lo.y) * mm, 5 / str_min);
+
+    lu_bssrdf_layer layer = {lu_v3(p->sigma_s_prime[0], p->sigma_s_prime[1], p->sigma_s_prime[2]),
+                             lu_v3(p->sigma_a[0], p->sigma_a[1], p->sigma_a[2]), m->eta, 0.0f};
+    lu_bssrdf_profile_desc desc;
+    lu_bssrdf_profile_desc_default(&desc);
+    lu_bssrdf_profile prof;
+    CHECK_OK(lu_bssrdf_profile_build(&layer, 1, &desc, &prof, &err), &err);
+    const double r_max = prof.r_max / mm; /* scene units */
+    lu_bssrdf_profile_destroy(&prof);
+    CHECK((box.hi.x - box.lo.x) >= 4 * r_max && (box.hi.z - box.lo.z) >= 4 * r_max);
+
+    /* Frustum corners onto the top face y = box.hi.y (the view is a convex
+     * quadrilateral there, so its corners bound it). */
+    const lu_camera *cam = &s.camera;
+    lu_vec3 fwd = lu_v3_norm(lu_v3_sub(cam->look_at, cam->position));
+    lu_vec3 right = lu_v3_norm(lu_v3_cross(fwd, cam->up));
+    lu_vec3 up = lu_v3_cross(right, fwd);
+    double th = tan(cam->fov_y_deg * LU_PI / 360.0), tw = th * cam->width / cam->height;
+    for (int k = 0; k < 4; k++) {
+        lu_vec3 d = lu_v3_add(fwd, lu_v3_add(lu_v3_scale(right, (float)((k & 1) ? tw : -tw)),
+                                             lu_v3_scale(up, (float)((k & 2) ? th : -th))));
+        CHECK(d.y < 0);
+        double t = (box.hi.y - cam->position.y) / d.y;
+        double x = cam->position.x + t * d.x, z = cam->position.z + t * d.z;
+        double margin = fmin(fmin(x - box.lo.x, box.hi.x - x), fmin(z - box.lo.z, box.hi.z - z));
+        CHECK_MSG(margin >= r_max, "view corner %d is %.3f from the side, r_max %.3f", k, margin, r_max);
+    }
+    lu_scene_destroy(&s);
+}
+
 /* A scene built in code equals the same scene loaded from JSON, field for
  * field and image for image, and the builder refuses what the loader would. */
 static const char k_built_json[] =
@@ -419,5 +478,6 @@ int main(void) {
     RUN_TEST(test_transform_and_translucent);
     RUN_TEST(test_grid_transform);
     RUN_TEST(test_bundled_scenes_load);
+    RUN_TEST(test_ablation_halfspace_is_deep_and_wide);
     TEST_EXIT();
 }

@@ -53,10 +53,18 @@ typedef struct lu_metrics {
     double rmse;     /* sqrt(mean (a - b)^2) */
     double psnr;     /* 10 log10(peak^2 / mse), peak = max value of b (1 if b <= 0); +inf if equal */
     double max_abs;  /* largest |a - b| */
+    double mean_ratio;       /* sum a / sum b over all channels (+inf if sum b is 0 and sum a is not, 1 if both are) */
+    double mean_ratio_rgb[3]; /* the same per channel */
 } lu_metrics;
 
 /* Sizes must match. */
 lu_result lu_image_compare(const lu_image *a, const lu_image *b, lu_metrics *out, lu_error *err);
+/* *out = in averaged over k x k pixel blocks: (width / k) x (height / k), a
+ * partial block at the right or bottom edge dropped. Comparing block averages
+ * removes most of a Monte Carlo image's per-pixel noise (its variance falls by
+ * k^2) while keeping structure coarser than k. k >= 1, at most the smaller
+ * side. *out is created here and the caller destroys it. */
+lu_result lu_image_block_average(const lu_image *in, int k, lu_image *out, lu_error *err);
 /* False-colour |a - b| per pixel (luminance of the difference), mapped through
  * a perceptual colour ramp; scale 0 picks the 99th percentile as full scale.
  * *out is created here (linear RGB; save it as PNG with exposure 0 to see the

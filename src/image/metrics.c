@@ -22,14 +22,21 @@ static lu_result check_pair(const lu_image *a, const lu_image *b, lu_error *err)
     return LU_OK;
 }
 
+static double ratio_of_sums(double a, double b) {
+    if (b != 0) return a / b;
+    return a == 0 ? 1.0 : INFINITY;
+}
+
 lu_result lu_image_compare(const lu_image *a, const lu_image *b, lu_metrics *out, lu_error *err) {
     memset(out, 0, sizeof *out);
     lu_result res = check_pair(a, b, err);
     if (res != LU_OK) return res;
     const size_t n = (size_t)a->width * a->height * 3;
-    double d2 = 0, b2 = 0, d1 = 0, b1 = 0, max_abs = 0, peak = -INFINITY;
+    double d2 = 0, b2 = 0, d1 = 0, b1 = 0, max_abs = 0, peak = -INFINITY, sa[3] = {0}, sb[3] = {0};
     for (size_t i = 0; i < n; i++) {
         double bv = b->rgb[i], d = (double)a->rgb[i] - bv;
+        sa[i % 3] += a->rgb[i];
+        sb[i % 3] += bv;
         d2 += d * d;
         b2 += bv * bv;
         d1 += fabs(d);
@@ -45,6 +52,31 @@ lu_result lu_image_compare(const lu_image *a, const lu_image *b, lu_metrics *out
     if (peak <= 0) peak = 1;
     out->psnr = mse > 0 ? 10.0 * log10(peak * peak / mse) : INFINITY;
     out->max_abs = max_abs;
+    for (int c = 0; c < 3; c++) out->mean_ratio_rgb[c] = ratio_of_sums(sa[c], sb[c]);
+    out->mean_ratio = ratio_of_sums(sa[0] + sa[1] + sa[2], sb[0] + sb[1] + sb[2]);
+    return LU_OK;
+}
+
+lu_result lu_image_block_average(const lu_image *in, int k, lu_image *out, lu_error *err) {
+    memset(out, 0, sizeof *out);
+    if (!in || !in->rgb) return lu_fail(err, LU_ERR_INVALID_ARG, "block average: the image is empty");
+    if (k < 1 || k > in->width || k > in->height)
+        return lu_fail(err, LU_ERR_INVALID_ARG, "block average: block size %d not in [1, %d] for a %dx%d image", k,
+                       in->width < in->height ? in->width : in->height, in->width, in->height);
+    lu_result res = lu_image_create(out, in->width / k, in->height / k, err);
+    if (res != LU_OK) return res;
+    const double w = 1.0 / ((double)k * k);
+    for (int by = 0; by < out->height; by++)
+        for (int bx = 0; bx < out->width; bx++) {
+            double s[3] = {0};
+            for (int y = by * k; y < (by + 1) * k; y++)
+                for (int x = bx * k; x < (bx + 1) * k; x++) {
+                    const float *p = lu_image_px(in, x, y);
+                    for (int c = 0; c < 3; c++) s[c] += p[c];
+                }
+            float *o = lu_image_px(out, bx, by);
+            for (int c = 0; c < 3; c++) o[c] = (float)(s[c] * w);
+        }
     return LU_OK;
 }
 

@@ -17,8 +17,9 @@ static double mc_uniform(mc_rng *g) { return lu_rng_unit(&g->s); }
 enum { MC_CHUNKS = 64, MC_MAX_EVENTS = 1000000 };
 /* Per chunk: R bins, T bins, R bins of multiply scattered light, then
  * r_total, t_total, r_total^2 per path, r_total of multiple scattering, and
- * the weight of walks dropped at the event cap. */
-#define TALLY(b) (3 * (b) + 5)
+ * the weight of walks dropped at the event cap, and r_total of multiple
+ * scattering with no face reflection between the first two events. */
+#define TALLY(b) (3 * (b) + 6)
 
 typedef struct mc_job {
     double sigma_t, albedo, eta, thickness;
@@ -48,6 +49,7 @@ static void mc_chunk(void *vctx, int64_t begin, int64_t end, int thread) {
         for (long long p = p0; p < p1; p++) {
             double x = 0, y = 0, z = 0, dx = 0, dy = 0, dz = 1, w = 1.0, r_path = 0.0;
             int events = 0;
+            bool reflected_after_first = false;
             /* A walk in a non-absorbing half-space returns with probability 1 but
              * its return time has a heavy tail: walks past 10^6 events are
              * dropped, which biases low by their weight (reported as `dropped`:
@@ -74,12 +76,14 @@ static void mc_chunk(void *vctx, int64_t begin, int64_t end, int thread) {
                         if (events >= 2) {
                             tal[2 * j->bins + b] += out;
                             tal[3 * j->bins + 3] += out;
+                            if (!reflected_after_first) tal[3 * j->bins + 5] += out;
                         }
                     } else {
                         tal[3 * j->bins + 1] += out;
                     }
                     w *= f;
                     dz = -dz;
+                    if (events == 1) reflected_after_first = true;
                 } else {
                     x += s * dx;
                     y += s * dy;
@@ -134,6 +138,7 @@ lu_result lu_bssrdf_mc_slab(double sigma_sp, double sigma_a, double eta, double 
         sq += tal[3 * bins + 2];
         out->r_multiple_total += tal[3 * bins + 3];
         out->dropped += tal[3 * bins + 4];
+        out->r_multiple_unreflected_total += tal[3 * bins + 5];
     }
     /* A path can leave through several bins (every internal hit lets some
      * out), so bins are not independent per path; the 64 chunks are, and
@@ -160,6 +165,7 @@ lu_result lu_bssrdf_mc_slab(double sigma_sp, double sigma_a, double eta, double 
     out->t_total /= (double)paths;
     out->r_multiple_total /= (double)paths;
     out->dropped /= (double)paths;
+    out->r_multiple_unreflected_total /= (double)paths;
     out->r_stderr = sqrt(fmax(0.0, sq / (double)paths - out->r_total * out->r_total) / (double)paths);
     out->bins = bins;
     out->dr = dr;

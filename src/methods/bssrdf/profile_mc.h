@@ -22,6 +22,11 @@ typedef struct lu_bssrdf_mc_result {
     double *r_profile_stderr;        /* standard error of each r_profile bin (batch means over the chunks) */
     double r_total, t_total;         /* all exiting power, per unit entering power */
     double r_multiple_total;
+    /* R of paths that scattered at least twice with no face reflection
+     * between their first two events: what a path tracer reaches that joins
+     * a vertex to the light's first scattering point by one straight segment
+     * (docs/bssrdf.md, "Where the error comes from"). */
+    double r_multiple_unreflected_total;
     double r_stderr;                 /* standard error of r_total */
     double dropped;                  /* weight of walks cut at 10^6 events, per unit entering power */
 } lu_bssrdf_mc_result;
