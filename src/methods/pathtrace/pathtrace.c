@@ -117,9 +117,9 @@ static const lu_param_desc k_params[P_COUNT] = {
 static lu_vec3 env_radiance(const lu_light *l, lu_vec3 dir) { return lu_env_lookup(&l->env, l->env_scale, dir); }
 
 static void env_destroy(pt_env *e) {
-    free(e->cdf_rows);
-    free(e->cdf_cols);
-    free(e->prob);
+    lu_free(e->cdf_rows);
+    lu_free(e->cdf_cols);
+    lu_free(e->prob);
 }
 
 /* Piecewise-constant distribution over (u, v) cells, weight = luminance x
@@ -135,9 +135,9 @@ static lu_result env_build(const lu_light *l, int light_index, pt_env *e, lu_err
     e->w = texel ? im->width : 64;
     e->h = texel ? im->height : 32;
     size_t n = (size_t)e->w * e->h;
-    e->prob = calloc(n, sizeof *e->prob);
-    e->cdf_rows = calloc((size_t)e->h + 1, sizeof *e->cdf_rows);
-    e->cdf_cols = calloc((size_t)e->h * (e->w + 1), sizeof *e->cdf_cols);
+    e->prob = lu_calloc(n, sizeof *e->prob);
+    e->cdf_rows = lu_calloc((size_t)e->h + 1, sizeof *e->cdf_rows);
+    e->cdf_cols = lu_calloc((size_t)e->h * (e->w + 1), sizeof *e->cdf_cols);
     if (!e->prob || !e->cdf_rows || !e->cdf_cols) {
         env_destroy(e);
         return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory for the environment distribution");
@@ -1073,20 +1073,20 @@ static void pt_destroy(void *state) {
         if (st->media[m].inside) lu_accel_destroy(st->media[m].inside);
     }
     for (int i = 0; i < st->env_count; i++) env_destroy(&st->envs[i]);
-    free(st->envs);
-    free(st->media);
-    free(st->surf_info);
-    free(st->klights);
-    free(st->light_mask);
-    free(st->beam_buf);
-    free(st->stats_buf);
-    free(st);
+    lu_free(st->envs);
+    lu_free(st->media);
+    lu_free(st->surf_info);
+    lu_free(st->klights);
+    lu_free(st->light_mask);
+    lu_free(st->beam_buf);
+    lu_free(st->stats_buf);
+    lu_free(st);
 }
 
 static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_backend backend, void **out,
                             lu_error *err) {
     (void)backend;
-    pt_state *st = calloc(1, sizeof *st);
+    pt_state *st = lu_calloc(1, sizeof *st);
     if (!st) return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
     st->spp = (int)params[P_SPP];
     st->max_depth = (int)params[P_MAX_DEPTH];
@@ -1112,13 +1112,13 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
     }
 
     if (scene->medium_count > PT_MAX_MEDIA) {
-        free(st);
+        lu_free(st);
         return lu_fail(err, LU_ERR_LIMIT, "pathtrace: %d media (at most %d)", scene->medium_count, PT_MAX_MEDIA);
     }
     st->medium_count = scene->medium_count;
-    st->media = calloc((size_t)(scene->medium_count ? scene->medium_count : 1), sizeof *st->media);
+    st->media = lu_calloc((size_t)(scene->medium_count ? scene->medium_count : 1), sizeof *st->media);
     int surf_cap = scene->object_count + scene->medium_count;
-    st->surf_info = calloc((size_t)(surf_cap ? surf_cap : 1), sizeof *st->surf_info);
+    st->surf_info = lu_calloc((size_t)(surf_cap ? surf_cap : 1), sizeof *st->surf_info);
     if (!st->media || !st->surf_info) r = lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
     if (r == LU_OK && surf_cap) r = lu_accel_create(&st->surf, err);
 
@@ -1200,7 +1200,7 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
 
     for (int l = 0; l < scene->light_count; l++) st->env_count += scene->lights[l].type == LU_LIGHT_ENVIRONMENT;
     if (r == LU_OK && st->env_count) {
-        st->envs = calloc((size_t)st->env_count, sizeof *st->envs);
+        st->envs = lu_calloc((size_t)st->env_count, sizeof *st->envs);
         if (!st->envs) r = lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
         int k = 0;
         for (int l = 0; l < scene->light_count && r == LU_OK; l++)
@@ -1238,14 +1238,14 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
     st->out = out;
     const lu_camera *c = &scene->camera;
     st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
-    free(st->klights);
-    free(st->light_mask);
+    lu_free(st->klights);
+    lu_free(st->light_mask);
     size_t nl = (size_t)(scene->light_count ? scene->light_count : 1);
-    st->klights = calloc(nl, sizeof *st->klights);
-    st->light_mask = calloc(nl, sizeof *st->light_mask);
-    st->accum = calloc((size_t)c->width * c->height * 3, sizeof *st->accum);
+    st->klights = lu_calloc(nl, sizeof *st->klights);
+    st->light_mask = lu_calloc(nl, sizeof *st->light_mask);
+    st->accum = lu_calloc((size_t)c->width * c->height * 3, sizeof *st->accum);
     if (!st->klights || !st->light_mask || !st->accum) {
-        free(st->accum);
+        lu_free(st->accum);
         st->accum = NULL;
         return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
     }
@@ -1263,20 +1263,20 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
     }
     st->camera_mask = inside_mask_at(st, c->position);
     st->beam_cap = st->delta_light_count * st->light_paths * PT_MAX_LIGHT_SEGMENTS;
-    free(st->beam_buf);
-    st->beam_buf = st->beam_cap ? calloc((size_t)st->beam_cap * lu_thread_count(), sizeof *st->beam_buf) : NULL;
+    lu_free(st->beam_buf);
+    st->beam_buf = st->beam_cap ? lu_calloc((size_t)st->beam_cap * lu_thread_count(), sizeof *st->beam_buf) : NULL;
     if (st->beam_cap && !st->beam_buf) {
-        free(st->accum);
+        lu_free(st->accum);
         st->accum = NULL;
         return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
     }
 
-    free(st->stats_buf);
+    lu_free(st->stats_buf);
     st->stats_buf = NULL;
     if (st->stats) {
-        st->stats_buf = calloc((size_t)lu_thread_count(), sizeof *st->stats_buf);
+        st->stats_buf = lu_calloc((size_t)lu_thread_count(), sizeof *st->stats_buf);
         if (!st->stats_buf) {
-            free(st->accum);
+            lu_free(st->accum);
             st->accum = NULL;
             return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
         }
@@ -1297,7 +1297,7 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
     lu_progress_end(&st->progress);
     if (st->stats_buf) print_stats(st->stats_buf, lu_thread_count());
     resolve(st, st->spp);
-    free(st->accum);
+    lu_free(st->accum);
     st->accum = NULL;
     return LU_OK;
 }
