@@ -2,7 +2,8 @@
  * a duplicate key or an out-of-range number is an error naming the JSON path,
  * e.g. "scenes/smoke.json: $.lights[1].intensity: expected 3 numbers". The
  * file's values go through the scene builder (scene_builder.c), which checks
- * and assembles every scene, loaded or built. */
+ * and assembles every scene, loaded or built. Over 800 lines: one parser per
+ * key of docs/scene-format.md, sharing the JSON-path error helpers. */
 #include <lucent/lucent.h>
 
 #include <cjson/cJSON.h>

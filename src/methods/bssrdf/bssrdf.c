@@ -27,7 +27,11 @@
  * Steps 1-2 read the lights and never the camera: they are kept across
  * camera moves and redone per light that changed; 3-4 are redone when the
  * camera moved (4 also when a splat changed); 5 runs every frame.
- * Media other than the translucent objects' own are not rendered. */
+ * Media other than the translucent objects' own are not rendered.
+ * Over 800 lines because steps 1-5 all read one private state (the objects'
+ * tables, the per-light map slots and splat lists); the profile tables
+ * (bssrdf_profile.c), sampling (bssrdf_sampling.c) and the GPU pass
+ * (bssrdf_gpu.c) are already rooms of their own. */
 #include <lucent/lucent.h>
 
 #include <stdio.h>

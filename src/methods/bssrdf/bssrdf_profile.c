@@ -1,5 +1,8 @@
 /* Diffusion profile tables, splat radius and multi-layer stacking by FFT
- * (see bssrdf_profile.h). The Monte Carlo validator is profile_mc.c. */
+ * (see bssrdf_profile.h). The Monte Carlo validator is profile_mc.c, photon
+ * beam diffusion profile_pbd.c. Over 800 lines because every profile kind
+ * fills the one table layout lu_bssrdf.h reads, and the stacking and
+ * prefilter passes operate on that layout. */
 #include "methods/bssrdf/bssrdf_profile.h"
 
 #include <fftw3.h>
