@@ -151,8 +151,8 @@ vec3 lu_k_emission(LU_CTX_PARAM, int m, vec3 p) {
  * its block grid; a constant medium: its density), the hook of
  * methods/common/lu_march_blocks.h and the tracking kernels. */
 float lu_k_majorant(LU_CTX_PARAM, int m, int bx, int by, int bz) {
-    vec4 s = lu_scene_media[LU_SCENE_MEDIUM_VEC4 * m + 4];
-    if (lu_scene_media[LU_SCENE_MEDIUM_VEC4 * m + 6].w != 0.0f) return s.w;
+    vec4 s = lu_scene_media[LU_SCENE_MEDIUM_VEC4 * m + LU_SCENE_MEDIUM_DENSITY_VEC4];
+    if (lu_scene_media[LU_SCENE_MEDIUM_VEC4 * m + LU_SCENE_MEDIUM_CONSTANT_VEC4].w != 0.0f) return s.w;
     vec4 h = lu_scene_media[LU_SCENE_MAJORANT_HEADER + m];
     int nx = int(h.x), ny = int(h.y), nz = int(h.z);
     if (bx < 0 || by < 0 || bz < 0 || bx >= nx || by >= ny || bz >= nz) return 0.0f;
