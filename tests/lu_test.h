@@ -13,6 +13,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "core/quadrature.h"
+
 static int lu_test_failures = 0;
 static int lu_test_checks = 0;
 
@@ -72,26 +74,8 @@ static int lu_test_checks = 0;
         }                                                                                           \
     } while (0)
 
-/* Gauss-Legendre nodes x and weights w on [-1, 1] (Newton on P_n). */
-static inline void lu_test_gauss_legendre(int n, double *x, double *w) {
-    for (int i = 0; i < n; i++) {
-        double z = cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 1.0;
-        for (int it = 0; it < 100; it++) {
-            double p0 = 1.0, p1 = z;
-            for (int k = 2; k <= n; k++) {
-                double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = n * (z * p1 - p0) / (z * z - 1);
-            double dz = p1 / dp;
-            z -= dz;
-            if (fabs(dz) < 1e-15) break;
-        }
-        x[i] = z;
-        w[i] = 2.0 / ((1 - z * z) * dp * dp);
-    }
-}
+/* Gauss-Legendre nodes x and weights w on [-1, 1] (core/quadrature.c). */
+static inline void lu_test_gauss_legendre(int n, double *x, double *w) { lu_gauss_legendre(n, x, w); }
 
 /* rel-L2 of a against b by the library's metric (the one `lucent compare` prints). */
 static inline double lu_test_rel_l2(const lu_image *a, const lu_image *b) {
@@ -107,6 +91,28 @@ static inline void lu_test_settings(lu_kvlist *kv, const char *settings) {
     lu_error err = {0};
     snprintf(buf, sizeof buf, "%s", settings ? settings : "");
     for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " ")) CHECK_OK(lu_kv_parse_assignment(kv, tok, &err), &err);
+}
+
+/* Renders a scene given as JSON text with `method` on the CPU ("method.key=value"
+ * settings, space-separated); false (and a counted failure) if anything fails. */
+static inline bool lu_test_render_json(const char *json, const char *method, const char *settings, lu_image *img) {
+    lu_scene s;
+    lu_error err = {0};
+    lu_kvlist kv = {0};
+    CHECK_OK(lu_scene_load_string(json, "test.json", &s, &err), &err);
+    if (err.code != LU_OK) return false;
+    lu_test_settings(&kv, settings);
+    lu_renderer *r = NULL;
+    lu_result res = lu_renderer_create(method, &s, &kv, LU_BACKEND_CPU, &r, &err);
+    if (res == LU_OK) res = lu_renderer_render(r, &s, img, &err);
+    if (res != LU_OK) {
+        fprintf(stderr, "render failed: %s\n", err.message);
+        lu_test_failures++;
+    }
+    lu_renderer_destroy(r);
+    lu_scene_destroy(&s);
+    lu_kv_free(&kv);
+    return res == LU_OK;
 }
 
 /* Removes dir and the files in it (a test's scratch folder, e.g. a cache). */

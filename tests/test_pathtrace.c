@@ -44,25 +44,6 @@ static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int b
 
 /* ---- helpers ------------------------------------------------------------------- */
 
-static bool render_json(const char *json, const char *method, const char *settings, lu_image *img) {
-    lu_scene s;
-    lu_error err = {0};
-    lu_kvlist kv = {0};
-    CHECK_OK(lu_scene_load_string(json, "test.json", &s, &err), &err);
-    if (err.code != LU_OK) return false;
-    lu_test_settings(&kv, settings);
-    lu_renderer *r = NULL;
-    lu_result res = lu_renderer_create(method, &s, &kv, LU_BACKEND_CPU, &r, &err);
-    if (res == LU_OK) res = lu_renderer_render(r, &s, img, &err);
-    if (res != LU_OK) {
-        fprintf(stderr, "render failed: %s\n", err.message);
-        lu_test_failures++;
-    }
-    lu_renderer_destroy(r);
-    lu_scene_destroy(&s);
-    lu_kv_free(&kv);
-    return res == LU_OK;
-}
 
 static bool load_bundled(const char *name, int w, int h, lu_scene *s) {
     char path[512];
@@ -580,7 +561,7 @@ static void test_slab_integral_equation(void) {
             lu_image img = {0};
             const char *settings = mode == 0 ? "pathtrace.spp=3000 pathtrace.seed=5"
                                              : "pathtrace.spp=3000 pathtrace.seed=6 pathtrace.spectral=tracking";
-            if (!render_json(json, "pathtrace", settings, &img)) continue;
+            if (!lu_test_render_json(json, "pathtrace", settings, &img)) continue;
             for (int c = 0; c < 3; c++) {
                 double want = side == 0 ? lr[c] : lt[c];
                 double got = image_mean(&img, c), se = image_std(&img, c) / sqrt(16.0);
@@ -598,7 +579,7 @@ static void test_slab_integral_equation(void) {
 
 static void furnace_check(const char *json, const char *settings, const double L[3]) {
     lu_image img = {0};
-    if (!render_json(json, "pathtrace", settings, &img)) return;
+    if (!lu_test_render_json(json, "pathtrace", settings, &img)) return;
     int n = img.width * img.height;
     for (int c = 0; c < 3; c++) {
         double m = image_mean(&img, c), se = image_std(&img, c) / sqrt((double)n);
@@ -673,7 +654,7 @@ static void test_env_lambert_plane(void) {
              "   \"material\": {\"albedo\": [0.5, 0.5, 0.5]}}]}",
              path);
     lu_image img = {0};
-    if (render_json(json, "pathtrace", "pathtrace.spp=1500", &img)) {
+    if (lu_test_render_json(json, "pathtrace", "pathtrace.spp=1500", &img)) {
         for (int c = 0; c < 3; c++) {
             double want = 0.5 / M_PI * ref[c], got = image_mean(&img, c), se = image_std(&img, c) / 4.0;
             fprintf(stderr, "  env plane channel %d: %.5f +- %.5f, quadrature %.5f\n", c, got, se, want);
@@ -717,20 +698,20 @@ static void test_refract_beams_identity(void) {
                  "pathtrace.light_paths=%d",
                  s + 1, s % 2);
         lu_image img = {0};
-        if (render_json(json, "pathtrace", settings, &img)) stack_add(&refr, &img);
+        if (lu_test_render_json(json, "pathtrace", settings, &img)) stack_add(&refr, &img);
         lu_image_destroy(&img);
         if (s >= 2) continue;
         snprintf(settings, sizeof settings,
                  "pathtrace.spp=512 pathtrace.boundary=straight pathtrace.jitter=0 "
                  "pathtrace.seed=%d",
                  50 + s);
-        if (render_json(json, "pathtrace", settings, &img)) stack_add(&straight, &img);
+        if (lu_test_render_json(json, "pathtrace", settings, &img)) stack_add(&straight, &img);
         lu_image_destroy(&img);
         snprintf(settings, sizeof settings,
                  "pathtrace.spp=512 pathtrace.boundary=straight pathtrace.jitter=0 "
                  "pathtrace.max_depth=1 pathtrace.seed=%d",
                  60 + s);
-        if (render_json(json, "pathtrace", settings, &img)) stack_add(&single, &img);
+        if (lu_test_render_json(json, "pathtrace", settings, &img)) stack_add(&single, &img);
         lu_image_destroy(&img);
     }
     if (refr.count < 6 || straight.count < 2 || single.count < 2) return;

@@ -21,25 +21,6 @@
 #include "lu_test.h"
 #include "methods/pathtrace/pathtrace_internal.h"
 
-static bool render_json(const char *json, const char *settings, lu_image *img) {
-    lu_scene s;
-    lu_error err = {0};
-    lu_kvlist kv = {0};
-    CHECK_OK(lu_scene_load_string(json, "test.json", &s, &err), &err);
-    if (err.code != LU_OK) return false;
-    lu_test_settings(&kv, settings);
-    lu_renderer *r = NULL;
-    lu_result res = lu_renderer_create("pathtrace", &s, &kv, LU_BACKEND_CPU, &r, &err);
-    if (res == LU_OK) res = lu_renderer_render(r, &s, img, &err);
-    if (res != LU_OK) {
-        fprintf(stderr, "render failed: %s\n", err.message);
-        lu_test_failures++;
-    }
-    lu_renderer_destroy(r);
-    lu_scene_destroy(&s);
-    lu_kv_free(&kv);
-    return res == LU_OK;
-}
 
 static void channel_stats(const lu_image *img, int c, double *mean, double *se) {
     int n = img->width * img->height;
@@ -146,7 +127,7 @@ static void test_diffuse_boundary_halfspace(void) {
         lu_image img = {0};
         const char *settings = guide ? "pathtrace.spp=256 pathtrace.seed=4 pathtrace.boundary=diffuse pathtrace.guide=dwivedi"
                                      : "pathtrace.spp=256 pathtrace.seed=3 pathtrace.boundary=diffuse";
-        if (!render_json(json, settings, &img)) return;
+        if (!lu_test_render_json(json, "pathtrace", settings, &img)) return;
         for (int c = 0; c < 3; c++) {
             double want = halfspace_albedo(w[c]), got, se;
             channel_stats(&img, c, &got, &se);
@@ -175,7 +156,7 @@ static void test_guided_unbiased(void) {
         double g = k ? 0.3 : 0.0;
         snprintf(json, sizeof json, k_sphere, 6.0, 10.0, 16.0, 0.0, 0.0, 0.0, g);
         lu_image img = {0};
-        if (render_json(json, "pathtrace.spp=192 pathtrace.boundary=refract pathtrace.guide=dwivedi", &img)) {
+        if (lu_test_render_json(json, "pathtrace", "pathtrace.spp=192 pathtrace.boundary=refract pathtrace.guide=dwivedi", &img)) {
             for (int c = 0; c < 3; c++) {
                 double m, se;
                 channel_stats(&img, c, &m, &se);
@@ -196,7 +177,7 @@ static void test_guided_unbiased(void) {
         snprintf(sa, sizeof sa, "pathtrace.spp=384 pathtrace.seed=11 pathtrace.boundary=%s", boundary);
         snprintf(sb, sizeof sb, "pathtrace.spp=384 pathtrace.seed=12 pathtrace.boundary=%s pathtrace.guide=dwivedi",
                  boundary);
-        if (render_json(json, sa, &a) && render_json(json, sb, &b)) {
+        if (lu_test_render_json(json, "pathtrace", sa, &a) && lu_test_render_json(json, "pathtrace", sb, &b)) {
             /* The per-pixel difference of two independent images has mean 0
              * under "same expectation" and its spread is the two estimators'
              * noise alone (the image's own structure cancels). */
