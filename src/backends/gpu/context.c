@@ -337,9 +337,7 @@ static lu_result list_candidates(const char *client, lu_gpu_device_pref pref, ca
  * create makes its context, later ones share it (GL objects of one renderer
  * never meet another's, so sharing names is safe), the last destroy frees it.
  * g_devices_mu guards the table; g_serial serialises every use (below). */
-static struct {
-    lu_gpu_context *ctx;
-} g_devices[3];
+static lu_gpu_context *g_devices[3];
 static pthread_mutex_t g_devices_mu = PTHREAD_MUTEX_INITIALIZER;
 
 static lu_result context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err);
@@ -351,7 +349,7 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     lu_result r = env_preference(&pref, err);
     if (r != LU_OK) return r;
     pthread_mutex_lock(&g_devices_mu);
-    lu_gpu_context *ctx = g_devices[pref].ctx;
+    lu_gpu_context *ctx = g_devices[pref];
     if (ctx) {
         ctx->refs++;
     } else {
@@ -359,7 +357,7 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
         if (r == LU_OK) {
             ctx->refs = 1;
             ctx->slot = (int)pref;
-            g_devices[pref].ctx = ctx;
+            g_devices[pref] = ctx;
         }
     }
     pthread_mutex_unlock(&g_devices_mu);
@@ -486,7 +484,7 @@ void lu_gpu_context_destroy(lu_gpu_context *ctx) {
     if (!ctx) return;
     pthread_mutex_lock(&g_devices_mu);
     bool last = --ctx->refs == 0;
-    if (last) g_devices[ctx->slot].ctx = NULL;
+    if (last) g_devices[ctx->slot] = NULL;
     pthread_mutex_unlock(&g_devices_mu);
     if (!last) return;
     if (eglGetCurrentContext() == ctx->context)
@@ -527,8 +525,8 @@ void lu_gpu_serial_leave(void) {
         pthread_mutex_lock(&g_devices_mu);
         EGLContext cur = eglGetCurrentContext();
         for (int i = 0; i < 3; i++)
-            if (g_devices[i].ctx && g_devices[i].ctx->context == cur && cur != EGL_NO_CONTEXT)
-                eglMakeCurrent(g_devices[i].ctx->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+            if (g_devices[i] && g_devices[i]->context == cur && cur != EGL_NO_CONTEXT)
+                eglMakeCurrent(g_devices[i]->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
         pthread_mutex_unlock(&g_devices_mu);
     }
     pthread_mutex_unlock(&g_serial);
