@@ -356,6 +356,7 @@ typedef struct row {
     bool has_err;
     double rel_l2_first, rel_l2_last, last_vs_first;
     double spp_equiv, load_avg;
+    double update_ms;       /* median time of the scene change before each timed frame (not in frame_ms) */
     double flicker;         /* --stability: mean |frame k - frame k-1| over the truth's; < 0: not measured */
 } row;
 
@@ -420,8 +421,12 @@ static lu_result bench_one(motion_state *ms, const char *method, lu_backend back
     }
     lu_image prev = {0};
     *step_diff = 0.0;
+    double *up_list = calloc((size_t)frames, sizeof *up_list);
+    if (!up_list) res = lu_fail(err, LU_ERR_NOMEM, "out of memory");
     for (int k = 1; k <= frames && res == LU_OK; k++) {
+        double u0 = lu_time_seconds();
         res = motion_set(ms, ms->kind == MOTION_STILL ? 0 : k, err);
+        up_list[k - 1] = 1e3 * (lu_time_seconds() - u0);
         if (untracked) lu_renderer_invalidate(r, LU_CHANGE_ALL);
         if (res == LU_OK) res = lu_renderer_render(r, ms->scene, last, err);
         if (res == LU_OK) ms_list[k - 1] = lu_cli_stats(r).frame_ms;
@@ -438,10 +443,13 @@ static lu_result bench_one(motion_state *ms, const char *method, lu_backend back
         out->min_ms = ms_list[0];
         out->max_ms = ms_list[frames - 1];
         out->median_ms = frames % 2 ? ms_list[frames / 2] : 0.5 * (ms_list[frames / 2 - 1] + ms_list[frames / 2]);
+        qsort(up_list, (size_t)frames, sizeof *up_list, cmp_double);
+        out->update_ms = frames % 2 ? up_list[frames / 2] : 0.5 * (up_list[frames / 2 - 1] + up_list[frames / 2]);
         size_t rss1 = lu_peak_rss_bytes();
         out->peak_mb = (double)(rss1 > rss0 ? rss1 : rss0) / (1024.0 * 1024.0);
     }
     free(ms_list);
+    free(up_list);
     lu_renderer_destroy(r);
     return res;
 }
@@ -486,7 +494,7 @@ static bool write_csv(const char *path, const row *rows, int n, double gsps, lu_
     FILE *f = af.fp;
     fprintf(f, "scene,method,backend,prepare_ms,frame_ms_median,frame_ms_min,frame_ms_max,frames,speedup_vs_reference,"
                "peak_mb,rel_l2,rel_l1,rmse,psnr,motion,params,rel_l2_first,rel_l2_last,rel_l2_last_vs_first,spp_equiv,"
-               "yardstick_gsps,load_avg,width,height,threads,flicker\n");
+               "yardstick_gsps,load_avg,width,height,threads,flicker,update_ms\n");
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
         fprintf(f, "%s,%s,%s,%.3f,%.3f,%.3f,%.3f,%d,%.4f,%.1f,", r->scene, r->method, lu_backend_name(r->backend),
@@ -502,7 +510,7 @@ static bool write_csv(const char *path, const row *rows, int n, double gsps, lu_
         fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d,", r->last_vs_first, r->spp_equiv, gsps, r->load_avg, r->width,
                 r->height, lu_thread_count());
         if (r->flicker >= 0.0) fprintf(f, "%.6g", r->flicker);
-        fputc('\n', f);
+        fprintf(f, ",%.3f\n", r->update_ms);
     }
     return lu_atomic_commit(&af, err) == LU_OK;
 }
@@ -545,6 +553,7 @@ static bool write_json(const char *path, const row *rows, int n, double gsps, do
             fprintf(f, ", \"rel_l2\": %.6g, \"rel_l1\": %.6g, \"psnr\": %.4f, \"rel_l2_first\": %.6g, \"rel_l2_last\": %.6g",
                     r->err.rel_l2, r->err.rel_l1, psnr_out(r->err.psnr), r->rel_l2_first, r->rel_l2_last);
         if (r->flicker >= 0.0) fprintf(f, ", \"flicker\": %.6g", r->flicker);
+        fprintf(f, ", \"update_ms\": %.3f", r->update_ms);
         fprintf(f, ", \"rel_l2_last_vs_first\": %.6g, \"spp_equiv\": %.2f, \"yardstick_gsps\": %.4f, \"load_avg\": %.2f}%s\n",
                 r->last_vs_first, r->spp_equiv, gsps, r->load_avg, i + 1 < n ? "," : "");
     }
