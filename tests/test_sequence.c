@@ -312,6 +312,42 @@ static void test_emission_follows_time(void) {
     lu_scene_destroy(&s);
 }
 
+/* A temperature sequence over growing boxes, with a sequence density: the
+ * emission grid follows the time, placed in the density's voxels. */
+static void test_emission_sequence(void) {
+    char json[2048], base[512];
+    snprintf(json, sizeof json,
+             "{\"camera\": {\"position\": [0.3, 0.4, 3], \"look_at\": [0.3, 0.3, 0.3], \"width\": 8, \"height\": 8},"
+             " \"fps\": 10, \"media\": [{\"density\": {\"file\": \"a_###.nvdb\", \"frames\": [1, 3]}, \"sigma_s\": 1,"
+             " \"sigma_a\": 1, \"emission\": {\"temperature\": {\"file\": \"g_#.nvdb\", \"frames\": [1, 3]}}}]}");
+    snprintf(base, sizeof base, "%s/emission_seq.json", g_dir);
+    lu_scene s, one;
+    lu_error err;
+    CHECK_OK(lu_scene_load_string(json, base, &s, &err), &err);
+    if (err.code != LU_OK) return;
+    for (int f = 1; f <= 3; f++) {
+        CHECK_OK(lu_scene_set_time(&s, lu_scene_frame_time(&s, f), &err), &err);
+        CHECK(holds_frame(&s, f));
+        char d[128];
+        snprintf(d, sizeof d, "{\"file\": \"g_%d.nvdb\"}", f);
+        CHECK_OK(load(d, NULL, &one, &err), &err);
+        if (err.code != LU_OK) break;
+        const lu_grid *e = &s.media[0].emission_grid;
+        CHECK(e->nx == N && e->ny == N && e->nz == N);
+        double worst = 0.0;
+        for (int z = 0; z < N; z++)
+            for (int y = 0; y < N; y++)
+                for (int x = 0; x < N; x++) {
+                    lu_vec3 p = lu_affine_point(&s.media[0].index_to_world, lu_v3((float)x, (float)y, (float)z));
+                    float want = lu_grid_sample(&one.media[0].grid, lu_affine_point(&one.media[0].world_to_index, p));
+                    worst = fmax(worst, fabs((double)e->data[(z * N + y) * N + x] - want));
+                }
+        CHECK_MSG(worst < 1e-5, "frame %d: the temperature grid differs by %g from g_%d.nvdb", f, worst, f);
+        lu_scene_destroy(&one);
+    }
+    lu_scene_destroy(&s);
+}
+
 int main(void) {
     snprintf(g_dir, sizeof g_dir, "%s/test_sequence_%ld", LU_BINARY_DIR, (long)getpid());
     mkdir(g_dir, 0755);
@@ -348,6 +384,7 @@ int main(void) {
     RUN_TEST(test_malformed);
     RUN_TEST(test_plume);
     RUN_TEST(test_emission_follows_time);
+    RUN_TEST(test_emission_sequence);
     lu_test_remove_dir(g_dir);
     TEST_EXIT();
 }
