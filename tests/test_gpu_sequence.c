@@ -22,7 +22,7 @@ static const char *k_methods[] = {"raymarch", "afm", "gradient"};
 int main(void) {
     if (!lu_gpu_compiled_in()) TEST_EXIT_SKIPPED("built without the GPU backend");
     lu_scene s;
-    lu_error err;
+    lu_error err = {0};
     CHECK_OK(lu_scene_load_string(k_scene, "gpu_sequence.json", &s, &err), &err);
     if (err.code != LU_OK) TEST_EXIT();
     lu_kvlist kv = {0};

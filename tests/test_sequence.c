@@ -23,7 +23,7 @@ static float frame_value(int f, int x, int y, int z) { return 0.2f + 0.05f * (fl
 
 static void write_frame(const char *name, int f, float voxel, lu_vec3 origin, int lo, int hi) {
     lu_grid g;
-    lu_error err;
+    lu_error err = {0};
     CHECK_OK(lu_grid_alloc(&g, N, N, N, &err), &err);
     for (int z = 0; z < N; z++)
         for (int y = 0; y < N; y++)
@@ -69,7 +69,7 @@ static bool holds_frame(const lu_scene *s, int f) {
 
 static void test_time_selects_frame(void) {
     lu_scene s;
-    lu_error err;
+    lu_error err = {0};
     CHECK_OK(load("{\"file\": \"a_###.nvdb\", \"frames\": [1, 3]}", "\"fps\": 10,", &s, &err), &err);
     if (err.code != LU_OK) return;
     CHECK(lu_scene_animated(&s));
@@ -111,7 +111,7 @@ static void test_time_selects_frame(void) {
  * density at any world point is the frame file's own density there. */
 static void test_growing_boxes(void) {
     lu_scene s, one;
-    lu_error err;
+    lu_error err = {0};
     CHECK_OK(load("{\"file\": \"g_#.nvdb\", \"frames\": [1, 3]}", NULL, &s, &err), &err);
     if (err.code != LU_OK) return;
     const lu_grid *g = &s.media[0].grid;
@@ -145,7 +145,7 @@ static void test_image_equals_frame_file(void) {
     const char *methods[] = {"raymarch", "reference"};
     for (int mi = 0; mi < 2; mi++) {
         lu_scene s, one;
-        lu_error err;
+        lu_error err = {0};
         CHECK_OK(load("{\"file\": \"a_###.nvdb\", \"frames\": [1, 3]}", NULL, &s, &err), &err);
         CHECK_OK(load("{\"file\": \"a_002.nvdb\"}", NULL, &one, &err), &err);
         if (err.code != LU_OK) return;
@@ -206,7 +206,7 @@ static void test_malformed(void) {
     expect_error("{\"file\": \"a_###.nvdb\", \"frames\": [1, 3]}", "\"fps\": 0,", LU_ERR_RANGE, "$.fps");
     expect_error("{\"procedural\": \"smoke_plume\", \"rise\": 1, \"time\": 2}", NULL, LU_ERR_SCENE, "the time is the scene's");
     lu_scene s;
-    lu_error err;
+    lu_error err = {0};
     CHECK_OK(load("{\"file\": \"a_###.nvdb\", \"frames\": [1, 3]}", NULL, &s, &err), &err);
     if (err.code == LU_OK) {
         CHECK(lu_scene_set_time(&s, NAN, &err) == LU_ERR_NONFINITE);
@@ -226,7 +226,7 @@ static void test_malformed(void) {
 
 static void plume(double rise, double time, int threads, lu_grid *g) {
     lu_kvlist p = {0};
-    lu_error err;
+    lu_error err = {0};
     double c[3] = {0, 1, 0}, sz[3] = {2, 2, 2}, res = 40, seed = 3;
     lu_kv_set_number(&p, "center", c, 3, &err);
     lu_kv_set_number(&p, "size", sz, 3, &err);
@@ -269,7 +269,7 @@ static void test_plume(void) {
     const char *dens = "{\"procedural\": \"smoke_plume\", \"center\": [0, 1, 0], \"size\": [2, 2, 2], "
                        "\"resolution\": 24, \"rise\": 0.5, \"seed\": 2}";
     lu_scene s, direct;
-    lu_error err;
+    lu_error err = {0};
     CHECK_OK(load(dens, NULL, &s, &err), &err);
     CHECK_OK(load(dens, "\"time\": 0.7,", &direct, &err), &err);
     if (err.code != LU_OK) return;
@@ -291,7 +291,7 @@ static void test_emission_follows_time(void) {
         "  \"sigma_s\": 1, \"sigma_a\": 1, \"emission\": {\"grid\": {\"procedural\": \"smoke_plume\", \"center\": [0, 1, 0],"
         "  \"resolution\": 12, \"rise\": 0.5}}}]}";
     lu_scene s;
-    lu_error err;
+    lu_error err = {0};
     CHECK_OK(lu_scene_load_string(json, "emission.json", &s, &err), &err);
     if (err.code != LU_OK) return;
     CHECK(s.media[0].density_anim == NULL && s.media[0].emission_anim != NULL);
@@ -322,7 +322,7 @@ static void test_emission_sequence(void) {
              " \"sigma_a\": 1, \"emission\": {\"temperature\": {\"file\": \"g_#.nvdb\", \"frames\": [1, 3]}}}]}");
     snprintf(base, sizeof base, "%s/emission_seq.json", g_dir);
     lu_scene s, one;
-    lu_error err;
+    lu_error err = {0};
     CHECK_OK(lu_scene_load_string(json, base, &s, &err), &err);
     if (err.code != LU_OK) return;
     for (int f = 1; f <= 3; f++) {
@@ -371,7 +371,7 @@ int main(void) {
         snprintf(dst, sizeof dst, "%s/c_2.nvdb", g_dir);
         char *data;
         size_t size;
-        lu_error err;
+        lu_error err = {0};
         CHECK_OK(lu_read_file(src, 1u << 20, &data, &size, &err), &err);
         FILE *fp = fopen(dst, "wb");
         if (fp && err.code == LU_OK) fwrite(data, 1, size / 2, fp);
