@@ -40,6 +40,7 @@ static void usage(void) {
            "  --reference FILE    use this image as the truth instead of rendering it (one scene,\n"
            "                      still only)\n"
            "  --no-truth          render no truth: timings only, the error columns stay empty\n"
+           "  --time T            put each scene at time T seconds first (media that follow time)\n"
            "  --stability         with a motion: render the truth at every timed state and\n"
            "                      report each row's flicker: the mean absolute difference of\n"
            "                      consecutive frames over the truth's own (1: no flicker of\n"
@@ -585,7 +586,8 @@ typedef struct bench_opts {
     sweep sweeps[MAX_SWEEPS];
     int nsweeps;
     const char *csv, *json, *ref_path, *img_dir;
-    bool no_truth, no_yardstick, stability;
+    bool no_truth, no_yardstick, stability, time_given;
+    double time;
     unsigned tracking;         /* bit 0: rows with change tracking, bit 1: rows without */
 } bench_opts;
 
@@ -645,6 +647,11 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
             o->ref_path = argv[++i];
         } else if (strcmp(a, "--no-truth") == 0) {
             o->no_truth = true;
+        } else if (strcmp(a, "--time") == 0 && has_next) {
+            o->time = strtod(argv[++i], &end);
+            o->time_given = true;
+            if (*end || end == argv[i] || !isfinite(o->time) || fabs(o->time) > 1e6)
+                rc = lu_cli_usage("bench", "--time takes seconds in [-1e6, 1e6] (\"%s\")", argv[i]);
         } else if (strcmp(a, "--stability") == 0) {
             o->stability = true;
         } else if (strcmp(a, "--no-yardstick") == 0) {
@@ -928,6 +935,11 @@ int lu_cmd_bench(int argc, char **argv) {
         lu_scene scene;
         rc = lu_cli_load_scene("bench", o.scenes[s], o.width, o.height, &scene);
         if (rc != LU_EXIT_OK) break;
+        if (o.time_given && lu_scene_set_time(&scene, o.time, &err) != LU_OK) {
+            rc = lu_cli_error("bench", &err);
+            lu_scene_destroy(&scene);
+            break;
+        }
         if (bench_scene(&o, o.scenes[s], &scene, gsps, rows, &nrows, &err) != LU_OK) rc = lu_cli_error("bench", &err);
         lu_scene_destroy(&scene);
     }

@@ -58,6 +58,18 @@ usage "--time takes seconds" render "$tmp/seq.json" --time nan -o "$tmp/x.exr"
 usage "not both" render "$tmp/seq.json" --time 1 --frame-range 1-2 -o "$tmp/x.exr"
 usage "more than one run" render "$tmp/seq.json" --frame-range 1-2 -o "$tmp/a_#_#.exr"
 
+# bench: the medium motion follows the sequence's time (one frame per step),
+# --stability gives every timed row a flicker, update_ms the scene change
+"$lucent" bench "$tmp/seq.json" --methods raymarch --motion medium --frames 3 --stability --no-yardstick \
+  --csv "$tmp/b.csv" >/dev/null 2>"$tmp/err"
+check $? "bench --stability: $(cat "$tmp/err")"
+col() { head -1 "$tmp/b.csv" | tr ',' '\n' | grep -nx "$1" | cut -d: -f1; }
+awk -F, -v f="$(col flicker)" -v u="$(col update_ms)" -v l="$(col rel_l2_last_vs_first)" \
+  'NR == 2 { ok = ($f > 0.5 && $f < 2 && $u > 0 && $l > 0) } END { exit !(NR == 2 && ok) }' "$tmp/b.csv"
+check $? "bench CSV: $(cat "$tmp/b.csv")"
+usage "--stability needs a motion" bench "$tmp/seq.json" --methods raymarch --stability
+usage "--time takes seconds" bench "$tmp/seq.json" --time 1e9
+
 # a missing frame: one line naming the file, exit 1, nothing written
 rm "$tmp/s_003.nvdb"
 "$lucent" render "$tmp/seq.json" --method raymarch --frame-range 1-3 -o "$tmp/miss_####.exr" >/dev/null 2>"$tmp/err"
