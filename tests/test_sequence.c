@@ -348,6 +348,48 @@ static void test_emission_sequence(void) {
     lu_scene_destroy(&s);
 }
 
+/* Only the emission follows time: a renderer kept across the change equals a
+ * fresh one. (No CPU product of these methods depends on the emission grid
+ * today, so this guards the property for products to come; the frame stage
+ * flags the change by the emission grid's generation either way.) */
+static void test_emission_change_reaches_methods(void) {
+    const char *json =
+        "{\"camera\": {\"position\": [0, 1, 4], \"look_at\": [0, 1, 0], \"width\": 16, \"height\": 12},"
+        " \"lights\": [{\"type\": \"point\", \"position\": [2, 3, 2], \"intensity\": [10, 10, 10]}],"
+        " \"media\": [{\"density\": {\"procedural\": \"uniform_box\", \"center\": [0, 1, 0], \"resolution\": 12,"
+        "  \"value\": 0.5}, \"sigma_s\": 1, \"sigma_a\": 1, \"emission\": {\"scale\": 4, \"grid\": {\"procedural\":"
+        "  \"smoke_plume\", \"center\": [0, 1, 0], \"resolution\": 12, \"rise\": 0.8}}}]}";
+    const char *methods[] = {"reference", "raymarch", "afm", "gradient"};
+    for (int mi = 0; mi < 4; mi++) {
+        lu_scene s;
+        lu_error err = {0};
+        CHECK_OK(lu_scene_load_string(json, "emission_change.json", &s, &err), &err);
+        if (err.code != LU_OK) return;
+        lu_kvlist kv = {0};
+        lu_test_settings(&kv, "reference.spp=1 reference.steps=64");
+        lu_renderer *kept = NULL, *fresh = NULL;
+        lu_image a = {0}, b = {0}, before = {0};
+        CHECK_OK(lu_renderer_create(methods[mi], &s, &kv, LU_BACKEND_CPU, &kept, &err), &err);
+        CHECK_OK(lu_renderer_render(kept, &s, &before, &err), &err);
+        CHECK_OK(lu_scene_set_time(&s, 1.0, &err), &err);
+        CHECK_OK(lu_renderer_render(kept, &s, &a, &err), &err);
+        CHECK_OK(lu_renderer_create(methods[mi], &s, &kv, LU_BACKEND_CPU, &fresh, &err), &err);
+        CHECK_OK(lu_renderer_render(fresh, &s, &b, &err), &err);
+        if (a.rgb && b.rgb && before.rgb) {
+            double d = lu_test_rel_l2(&a, &b), moved = lu_test_rel_l2(&before, &b);
+            CHECK_MSG(moved > 1e-3, "%s: the emission change did not show (%g)", methods[mi], moved);
+            CHECK_MSG(d == 0.0, "%s: the kept renderer missed the emission change (rel-L2 %g)", methods[mi], d);
+        }
+        lu_renderer_destroy(kept);
+        lu_renderer_destroy(fresh);
+        lu_image_destroy(&a);
+        lu_image_destroy(&b);
+        lu_image_destroy(&before);
+        lu_scene_destroy(&s);
+        lu_kv_free(&kv);
+    }
+}
+
 int main(void) {
     snprintf(g_dir, sizeof g_dir, "%s/test_sequence_%ld", LU_BINARY_DIR, (long)getpid());
     mkdir(g_dir, 0755);
@@ -385,6 +427,7 @@ int main(void) {
     RUN_TEST(test_plume);
     RUN_TEST(test_emission_follows_time);
     RUN_TEST(test_emission_sequence);
+    RUN_TEST(test_emission_change_reaches_methods);
     lu_test_remove_dir(g_dir);
     TEST_EXIT();
 }
