@@ -1,7 +1,9 @@
 /* lucent bench SCENE.json... --methods a,b — per-frame time after warm-up,
  * prepare time, peak memory, and error against the reference of the same
  * scene, all measured in one run (docs/architecture.md §8); parameter sweeps,
- * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c). */
+ * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c).
+ * Over 800 lines: one command whose motions, sweeps, truths and rows share
+ * the row table and its three output formats. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -21,7 +21,9 @@
  * headless EGL context), tone mapped exactly as `lucent render -o x.png`
  * does (sRGB curve after 2^exposure), overlaid, and drawn with glDrawPixels
  * into the window's own context; the screenshot is read back from the
- * window (glReadPixels), so it shows what the window showed. */
+ * window (glReadPixels), so it shows what the window showed.
+ * Over 800 lines: one interactive loop and the state it drives (the budget,
+ * refinement, the overlay, the live error, scripts, --stats, time). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
