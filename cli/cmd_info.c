@@ -176,9 +176,10 @@ int lu_cmd_info(int argc, char **argv) {
         if (lu_mesh_load(path, &m, &err) != LU_OK) return lu_cli_error("info", &err);
         print_mesh("", &m);
         lu_mesh_destroy(&m);
-    } else if (strcmp(ext, "nvdb") == 0) {
+    } else if (strcmp(ext, "nvdb") == 0 || strcmp(ext, "vdb") == 0) {
         lu_grid g = {0};
-        if (lu_grid_load_nvdb(path, NULL, &g, &err) != LU_OK) return lu_cli_error("info", &err);
+        lu_result r = ext[0] == 'v' ? lu_grid_load_vdb(path, NULL, &g, &err) : lu_grid_load_nvdb(path, NULL, &g, &err);
+        if (r != LU_OK) return lu_cli_error("info", &err);
         print_grid("", &g, &g.index_to_world);
         lu_grid_destroy(&g);
     } else if (lu_image_format_from_path(path) != LU_IMAGE_AUTO) {

@@ -488,7 +488,7 @@ static lu_result add_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_scen
     return wrap_loader(c, p, lu_scene_builder_add_light(b, &l, c->err));
 }
 
-/* "density": {"constant": v} | {"file": "x.nvdb", "grid": "density"} |
+/* "density": {"constant": v} | {"file": "x.nvdb" or "x.vdb", "grid": "density"} |
  *            {"raw": "x.raw", "dims": [nx,ny,nz], "voxel_size": h, "origin": [x,y,z]} |
  *            {"procedural": NAME, ...params} */
 static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid);
@@ -519,11 +519,11 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
         TRY(get_string(c, d, &dp, "grid", false, &gname));
         char path[1024];
         lu_path_resolve(c->file, file, path, sizeof path);
+        if (lu_path_has_suffix(path, ".vdb")) return wrap_loader(c, &dp, lu_grid_load_vdb(path, gname, grid, c->err));
         if (!lu_path_has_suffix(path, ".nvdb")) {
             jpath fp = jp_key(&dp, "file");
             return scene_fail(c, &fp, LU_ERR_UNSUPPORTED,
-                              "\"%s\" is not a .nvdb file (convert OpenVDB with nanovdb_convert; raw grids use \"raw\")",
-                              file);
+                              "\"%s\" is neither a .nvdb nor a .vdb file (raw grids use \"raw\")", file);
         }
         return wrap_loader(c, &dp, lu_grid_load_nvdb(path, gname, grid, c->err));
     }
