@@ -8,6 +8,7 @@
 //   fog_half.vdb "density" saved as 16-bit floats
 //   vec_only.vdb "velocity" alone;  no_grids.vdb  a file without grids
 //   twin.vdb     "density": a smooth blob for the .vdb = .nvdb render test
+//   tiny_zip.vdb, tiny_blosc.vdb, tiny_two.vdb   small fuzz seeds
 //   fog_map.txt  "i j k x y z" for the corners of density's active box,
 //                world positions from OpenVDB's own Transform::indexToWorld
 // density(i,j,k) = ((7i + 3j + 5k) mod 11 + 1) / 8 over i in [-5,10],
@@ -125,6 +126,22 @@ int main(int argc, char **argv) {
     bxf->postTranslate(openvdb::Vec3d(-0.9, 0.33, -0.1));
     blob->setTransform(bxf);
     ok = ok && write(dir + "/twin.vdb", {blob}, blosc);
+
+    // Fuzz seeds (fuzz/corpus/fuzz_vdb/): 4 x 3 x 2 voxels inside one leaf,
+    // so the files stay at a few hundred bytes.
+    openvdb::FloatGrid::Ptr tiny = openvdb::FloatGrid::create(0.0f);
+    for (int k = 0; k < 2; k++)
+        for (int j = 0; j < 3; j++)
+            for (int i = 0; i < 4; i++) tiny->tree().setValue(openvdb::Coord(i + 1, j + 2, k + 3), density_value(i, j, k));
+    tiny->setName("density");
+    tiny->setGridClass(openvdb::GRID_FOG_VOLUME);
+    tiny->setTransform(openvdb::math::Transform::createLinearTransform(0.25));
+    ok = ok && write(dir + "/tiny_zip.vdb", {tiny}, openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
+    ok = ok && write(dir + "/tiny_blosc.vdb", {tiny}, blosc);
+    openvdb::Vec3SGrid::Ptr tiny_vec = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    tiny_vec->tree().setValue(openvdb::Coord(1, 1, 1), openvdb::Vec3s(1.0f));
+    tiny_vec->setName("velocity");
+    ok = ok && write(dir + "/tiny_two.vdb", {tiny_vec, tiny}, openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
 
     const std::string map_path = dir + "/fog_map.txt";
     std::FILE *fp = std::fopen(map_path.c_str(), "w");
