@@ -204,8 +204,9 @@ lu_result lu_grid_load_vdb(const char *path, const char *grid_name, lu_grid *g, 
     if (r != LU_OK) return r;
     fclose(fp);
     char conv[PATH_MAX];
-    r = lu_grid_vdb_converter(conv, sizeof conv, err);
-    if (r != LU_OK) return r;
+    lu_error why;
+    r = lu_grid_vdb_converter(conv, sizeof conv, &why);
+    if (r != LU_OK) return lu_fail(err, r, "%s: %s", path, why.message);
     int out_fd = anon_file();
     if (out_fd < 0)
         return lu_fail(err, LU_ERR_IO, "%s: cannot make a memory file for the converted grid: %s", path,
