@@ -265,6 +265,12 @@ static void test_vdb_containment(void) {
     lu_grid g;
     lu_error err = {0};
     CHECK(lu_grid_load_vdb(missing, NULL, &g, &err) == LU_ERR_IO && strstr(err.message, "missing.vdb"));
+    /* An empty path is a mistake, not "search". */
+    lu_host h;
+    lu_host_get(&h);
+    h.threads = 0;
+    h.vdb_converter = "";
+    CHECK(lu_host_set(&h, &err) == LU_ERR_INVALID_ARG && strstr(err.message, "vdb_converter"));
     set_converter(NULL);
     char found[1024];
     CHECK_OK(lu_grid_vdb_converter(found, sizeof found, &err), &err);
