@@ -80,8 +80,9 @@ static void test_vdb_values_and_map(void) {
     path_in(map_txt, sizeof map_txt, "fog_map.txt");
     lu_grid g;
     lu_error err = {0};
-    CHECK_OK(lu_grid_load_vdb(path, "density", &g, &err), &err);
-    if (err.code != LU_OK) return;
+    lu_result r = lu_grid_load_vdb(path, "density", &g, &err);
+    CHECK_OK(r, &err);
+    if (r != LU_OK) return;
     CHECK(g.nx == k_hi[0] - k_lo[0] + 1 && g.ny == k_hi[1] - k_lo[1] + 1 && g.nz == k_hi[2] - k_lo[2] + 1);
     int wrong = 0;
     for (int k = k_lo[2]; k <= k_hi[2]; k++)
@@ -117,20 +118,24 @@ static void test_vdb_select_and_codecs(void) {
     lu_error err = {0};
     const char *names[] = {NULL, "", "temperature"};
     for (int n = 0; n < 3; n++) {
-        CHECK_OK(lu_grid_load_vdb(path, names[n], &g, &err), &err);
-        if (err.code != LU_OK) return;
+        lu_result r = lu_grid_load_vdb(path, names[n], &g, &err);
+        CHECK_OK(r, &err);
+        if (r != LU_OK) return;
         CHECK(strcmp(g.name, "temperature") == 0);
         CHECK(g.nx == 4 && g.ny == 1 && g.nz == 1);
         for (int i = 0; i < 4 && g.nx == 4; i++) CHECK(lu_grid_at(&g, i, 0, 0) == 300.0f + 100.0f * (float)i);
         lu_grid_destroy(&g);
     }
-    CHECK_OK(lu_grid_load_vdb(path, "density", &g, &err), &err);
+    lu_result r = lu_grid_load_vdb(path, "density", &g, &err);
+    CHECK_OK(r, &err);
+    if (r != LU_OK) return;
     const char *others[] = {"fog_zip.vdb", "fog_none.vdb", "fog_half.vdb"};
     for (int n = 0; n < 3; n++) {
         char other[300];
         path_in(other, sizeof other, others[n]);
-        CHECK_OK(lu_grid_load_vdb(other, NULL, &h, &err), &err);
-        if (err.code != LU_OK) continue;
+        r = lu_grid_load_vdb(other, NULL, &h, &err);
+        CHECK_OK(r, &err);
+        if (r != LU_OK) continue;
         CHECK_MSG(same_grid(&g, &h), "%s differs from fog.vdb's density", others[n]);
         lu_grid_destroy(&h);
     }
@@ -353,8 +358,9 @@ static void test_vdb_twin_render(void) {
         for (int t = 0; t < 2; t++) {
             if (!twins[t]) continue;
             if (m == 0) {
-                CHECK_OK(lu_grid_load_nvdb(twins[t], "density", &b, &err), &err);
-                if (err.code == LU_OK) {
+                lu_result r = lu_grid_load_nvdb(twins[t], "density", &b, &err);
+                CHECK_OK(r, &err);
+                if (r == LU_OK) {
                     CHECK_MSG(same_grid(&a, &b), "%s: grid differs from the .vdb's", twins[t]);
                     lu_grid_destroy(&b);
                 }
@@ -390,8 +396,9 @@ static void test_vdb_scene(void) {
              "{\"camera\": {\"position\": [0, 0, 3], \"look_at\": [0, 0, 0]},"
              " \"media\": [{\"density\": {\"file\": \"%s\", \"grid\": \"density\"}, \"sigma_s\": 1}]}",
              fog);
-    CHECK_OK(lu_scene_load_string(json, "t.json", &s, &err), &err);
-    if (err.code == LU_OK) lu_scene_destroy(&s);
+    lu_result r = lu_scene_load_string(json, "t.json", &s, &err);
+    CHECK_OK(r, &err);
+    if (r == LU_OK) lu_scene_destroy(&s);
 }
 
 int main(void) {
