@@ -401,6 +401,40 @@ static void test_vdb_scene(void) {
     if (r == LU_OK) lu_scene_destroy(&s);
 }
 
+/* A numbered sequence of .vdb frames loads as its frames do. */
+static void test_vdb_sequence(void) {
+    char src[300], f1[300], f2[300], json[1000];
+    path_in(src, sizeof src, "twin.vdb");
+    path_in(f1, sizeof f1, "seq_0001.vdb");
+    path_in(f2, sizeof f2, "seq_0002.vdb");
+    unsigned char *data = NULL;
+    size_t size = 0;
+    CHECK(read_all(src, &data, &size) && write_all(f1, data, size) && write_all(f2, data, size));
+    free(data);
+    lu_grid g;
+    lu_error err = {0};
+    lu_result r = lu_grid_load_vdb(src, "density", &g, &err);
+    CHECK_OK(r, &err);
+    snprintf(json, sizeof json,
+             "{\"camera\": {\"position\": [0, 0, 3], \"look_at\": [0, 0, 0]},"
+             " \"media\": [{\"density\": {\"file\": \"%s/seq_####.vdb\", \"frames\": [1, 2]}, \"sigma_s\": 1}]}",
+             g_dir);
+    lu_scene s;
+    lu_result rs = lu_scene_load_string(json, "t.json", &s, &err);
+    CHECK_OK(rs, &err);
+    if (rs == LU_OK && r == LU_OK) {
+        CHECK(s.medium_count == 1 && same_grid(&s.media[0].grid, &g));
+        lu_scene_destroy(&s);
+    }
+    remove(f2);
+    rs = lu_scene_load_string(json, "t.json", &s, &err);
+    CHECK_MSG(rs == LU_ERR_IO && strstr(err.message, "frame 2") && strstr(err.message, "seq_0002.vdb"), "%s: %s",
+              lu_result_name(rs), err.message);
+    if (rs == LU_OK) lu_scene_destroy(&s);
+    if (r == LU_OK) lu_grid_destroy(&g);
+    remove(f1);
+}
+
 int main(void) {
 #if !LU_HAVE_VDB
     TEST_EXIT_SKIPPED("built without libopenvdb-dev: no converter, no .vdb input");
@@ -420,6 +454,7 @@ int main(void) {
     RUN_TEST(test_vdb_threads);
     RUN_TEST(test_vdb_twin_render);
     RUN_TEST(test_vdb_scene);
+    RUN_TEST(test_vdb_sequence);
     lu_test_remove_dir(g_dir);
     TEST_EXIT();
 #endif
