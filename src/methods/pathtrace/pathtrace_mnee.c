@@ -1,0 +1,121 @@
+/* Manifold next-event estimation through one refraction, for the path tracer
+ * (pathtrace.c): from a vertex x inside a refracting medium, the point s on
+ * its boundary where a delta light's ray refracts towards x (Hanika, Droske
+ * and Fascione 2015, "Manifold Next Event Estimation"), and the factor by
+ * which the refraction spreads or concentrates the light's irradiance there.
+ * Documented in docs/pathtrace.md ("Delta lights behind a refracting
+ * boundary").
+ *
+ * The renderer refracts with the triangles' geometric normals, so the
+ * boundary is piecewise flat and the manifold walk uses the same normals:
+ * on one facet the constraint (Snell's law at s, the refracted ray through
+ * x) has at most one solution, found in closed form (directional light) or
+ * by a safeguarded one-dimensional Newton iteration in the plane of
+ * incidence (point and spot lights). The walk moves from facet to facet: the
+ * facet's solution is the next guess, and the boundary triangle the ray from
+ * x towards it meets first is the next facet, until that triangle is the
+ * facet itself. The generalized geometry term of a flat interface is closed
+ * form: the ray tube's cross-section at x against its solid angle at the
+ * light (or its cross-section, directional). */
+#include "methods/pathtrace/pathtrace_state.h"
+
+#include <math.h>
+
+/* Facet hops before the walk gives up (a cycle between facets: a gap of the
+ * refracted light field, or a solution it cannot reach). */
+#define PT_MNEE_HOPS 16
+
+/* On the plane through p with outward unit normal n: the point s where the
+ * light's ray refracts (index eta inside) towards x. false: no solution on
+ * this plane (x or the light on the wrong side). */
+static bool facet_solve(lu_k_light kl, float eta, lu_vec3 p, lu_vec3 n, lu_vec3 x, pt_mnee_path *out) {
+    double h2 = lu_v3_dot(lu_v3_sub(p, x), n);
+    if (!(h2 > 0.0)) return false;
+    if (kl.type == LU_K_LIGHT_DIRECTIONAL) {
+        float ci = lu_v3_dot(kl.direction, n);
+        lu_vec3 t;
+        if (!(ci > 0.0f) || !lu_k_refract(lu_v3_neg(kl.direction), n, eta, &t)) return false;
+        float ct = -lu_v3_dot(t, n);
+        if (!(ct > 0.0f)) return false;
+        float len = (float)h2 / ct;
+        out->s = lu_v3_madd(x, t, -len);
+        out->t = t;
+        out->dist = len;
+        out->cos_i = ci;
+        /* Parallel light: cross-section cos_i at the facet becomes cos_t. */
+        out->gain = ci / ct;
+        return true;
+    }
+    lu_vec3 lp = kl.position;
+    double h1 = lu_v3_dot(lu_v3_sub(lp, p), n);
+    if (!(h1 > 0.0)) return false;
+    /* The plane of incidence holds the light, x and the normal: s lies on
+     * the segment between their feet at distance r from the light's foot,
+     * where sin(theta_i) = eta sin(theta_t); that difference rises
+     * monotonically in r from the foot of the light to the foot of x, so
+     * the root is unique. */
+    lu_vec3 lf = lu_v3_madd(lp, n, (float)-h1), xf = lu_v3_madd(x, n, (float)h2);
+    lu_vec3 dv = lu_v3_sub(xf, lf);
+    double D = lu_v3_len(dv);
+    double r = 0.0;
+    if (D > 1e-7 * (h1 + h2)) {
+        double lo = 0.0, hi = D;
+        r = D * h1 / (h1 + h2); /* the straight line's crossing */
+        for (int it = 0; it < 64; it++) {
+            double a = sqrt(r * r + h1 * h1), b = sqrt((D - r) * (D - r) + h2 * h2);
+            double f = r / a - eta * (D - r) / b;
+            if (f > 0.0) hi = r;
+            else lo = r;
+            double fp = h1 * h1 / (a * a * a) + eta * h2 * h2 / (b * b * b);
+            double rn = r - f / fp;
+            if (!(rn > lo && rn < hi)) rn = 0.5 * (lo + hi);
+            bool done = fabs(rn - r) <= 1e-12 * (D + h1 + h2);
+            r = rn;
+            if (done) break;
+        }
+    }
+    lu_vec3 s = D > 0.0 ? lu_v3_madd(lf, dv, (float)(r / D)) : lf;
+    lu_vec3 tl = lu_v3_sub(lp, s), tx = lu_v3_sub(x, s);
+    double d1 = lu_v3_len(tl), d2 = lu_v3_len(tx);
+    if (!(d1 > 0.0) || !(d2 > 0.0)) return false;
+    double ci = lu_v3_dot(tl, n) / d1, ct = -lu_v3_dot(tx, n) / d2;
+    if (!(ci > 0.0) || !(ct > 0.0)) return false;
+    out->s = s;
+    out->t = lu_v3_scale(tx, (float)(1.0 / d2));
+    out->dist = (float)d2;
+    out->cos_i = (float)ci;
+    /* The ray tube from the point light: its cross-section at x per unit
+     * solid angle is (d1 + d2 / eta) sagittally (as sin(theta_t) = sin(theta_i)
+     * / eta) times d1 cos_t / cos_i + d2 cos_i / (eta cos_t) in the plane of
+     * incidence; the irradiance at s facing the light is I / d1^2. Normal
+     * incidence gives I / (d1 + d2 / eta)^2, the point seen at its apparent
+     * depth. */
+    out->gain = (float)(d1 * d1 / ((d1 + d2 / eta) * (d1 * ct / ci + d2 * ci / (eta * ct))));
+    return true;
+}
+
+bool lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, lu_vec3 seed, pt_mnee_path *out) {
+    const pt_medium *pm = &st->media[m];
+    lu_vec3 dir = seed;
+    lu_hit hit;
+    if (!lu_accel_closest(pm->inside, x, dir, 0.0f, LU_K_FAR, &hit)) return false;
+    for (int hop = 0; hop < PT_MNEE_HOPS; hop++) {
+        /* A facet seen from inside faces away from x (outward normals). */
+        if (!(lu_v3_dot(hit.ng, dir) > 0.0f)) return false;
+        lu_vec3 p = lu_v3_madd(x, dir, hit.t);
+        pt_mnee_path c;
+        if (!facet_solve(kl, pm->eta, p, hit.ng, x, &c)) return false;
+        dir = lu_v3_neg(c.t);
+        lu_hit h2;
+        if (!lu_accel_closest(pm->inside, x, dir, 0.0f, LU_K_FAR, &h2)) return false;
+        if (h2.prim_id == hit.prim_id) {
+            if (fabsf(h2.t - c.dist) > 1e-3f * c.dist + st->eps) return false;
+            c.ns = hit.ng;
+            c.prim = hit.prim_id;
+            *out = c;
+            return true;
+        }
+        hit = h2;
+    }
+    return false;
+}
