@@ -54,6 +54,7 @@
 
 #include "methods/frame.h"
 #include "methods/methods.h"
+#include "methods/common/mesh_adjacency.h"
 #include "methods/pathtrace/pathtrace_state.h"
 
 enum {
@@ -310,9 +311,9 @@ static lu_vec3 vertex_eval(const pt_vertex *v, lu_vec3 wl, float *pdf) {
  * estimation, pathtrace_mnee.c): light x Fresnel transmittance x the
  * refraction's irradiance factor x transmittance both sides x scattering at
  * v. No radiance factor eta^2: the light's flux is what is carried (as on
- * light subpaths). The walk starts from two guesses, the straight line to
+ * light subpaths). The search starts from two guesses, the straight line to
  * the light and the light refracted at the path's last boundary normal;
- * solutions on distinct facets are distinct paths and both count. */
+ * solutions on distinct facets are distinct paths and all count. */
 static lu_vec3 mnee(const pt_state *st, const pt_vertex *v, int l, lu_k_rng *rng) {
     lu_vec3 sum = lu_v3s(0.0f);
     uint64_t need = v->mask & st->sealed_bits & ~st->light_mask[l];
@@ -330,14 +331,11 @@ static lu_vec3 mnee(const pt_state *st, const pt_vertex *v, int l, lu_k_rng *rng
     lu_vec3 tr0;
     if (v->has_seed_n && lu_v3_dot(v->seed_n, l0.wl) > 0.0f && lu_k_refract(lu_v3_neg(l0.wl), v->seed_n, pm->eta, &tr0))
         seeds[ns++] = lu_v3_neg(tr0);
-    uint32_t found[2];
-    int nf = 0;
+    pt_mnee_path paths[PT_MNEE_MAX];
+    int np = lu_pt_mnee_solve(st, m, kl, v->x, seeds, ns, paths, PT_MNEE_MAX);
     uint64_t outside = mask_set(v->mask, pm->bit, false);
-    for (int k = 0; k < ns; k++) {
-        pt_mnee_path mp;
-        if (!lu_pt_mnee_solve(st, m, kl, v->x, seeds[k], &mp)) continue;
-        if (nf == 1 && found[0] == mp.prim) continue;
-        found[nf++] = mp.prim;
+    for (int k = 0; k < np; k++) {
+        const pt_mnee_path mp = paths[k];
         lu_vec3 s_out = lu_v3_madd(mp.s, mp.ns, st->eps);
         lu_k_light_sample ls = lu_k_light_arrive(kl, s_out);
         if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
@@ -1018,6 +1016,7 @@ static void pt_destroy(void *state) {
     for (int m = 0; m < st->medium_count; m++) {
         lu_pt_majorant_destroy(&st->media[m].maj);
         if (st->media[m].inside) lu_accel_destroy(st->media[m].inside);
+        lu_free(st->media[m].neighbours);
     }
     for (int i = 0; i < st->env_count; i++) env_destroy(&st->envs[i]);
     lu_free(st->envs);
@@ -1122,6 +1121,7 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
         }
         if (r == LU_OK) r = lu_accel_add_mesh(pm->inside, &med->boundary, &id, err);
         if (r == LU_OK) r = lu_accel_commit(pm->inside, err);
+        if (r == LU_OK && pm->refract) r = lu_mesh_edge_neighbours(&med->boundary, &pm->neighbours, err);
         if (pm->refract) {
             st->have_refract = true;
             st->refract_bits = mask_set(st->refract_bits, pm->bit, true);

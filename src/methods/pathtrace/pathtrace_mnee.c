@@ -14,9 +14,14 @@
  * incidence (point and spot lights). The walk moves from facet to facet: the
  * facet's solution is the next guess, and the boundary triangle the ray from
  * x towards it meets first is the next facet, until that triangle is the
- * facet itself. The generalized geometry term of a flat interface is closed
- * form: the ray tube's cross-section at x against its solid angle at the
- * light (or its cross-section, directional). */
+ * facet itself. Flat facets make one solution per facet but several facets
+ * per point where their refracted beams overlap (the faceted form of a
+ * curved surface's focusing), so from the facet found the search grows
+ * across edges through every neighbour that holds a solution too; each is
+ * a path of its own. The generalized geometry term of a flat interface is
+ * closed form: the ray tube's cross-section at x against its solid angle at
+ * the light (or its cross-section, directional). Visibility from x and from
+ * the light is the caller's shadow rays. */
 #include "methods/pathtrace/pathtrace_state.h"
 
 #include <math.h>
@@ -24,6 +29,11 @@
 /* Facet hops before the walk gives up (a cycle between facets: a gap of the
  * refracted light field, or a solution it cannot reach). */
 #define PT_MNEE_HOPS 16
+/* Facets tried per vertex and light, over every patch (a patch grows only
+ * through facets with a solution, a handful where facets are small against
+ * the depth of x). */
+#define PT_MNEE_TRIED 96
+#define PT_MNEE_GAP 1
 
 /* On the plane through p with outward unit normal n: the point s where the
  * light's ray refracts (index eta inside) towards x. false: no solution on
@@ -94,7 +104,21 @@ static bool facet_solve(lu_k_light kl, float eta, lu_vec3 p, lu_vec3 n, lu_vec3 
     return true;
 }
 
-bool lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, lu_vec3 seed, pt_mnee_path *out) {
+/* Whether s, on the plane of triangle tri, lies in it (barycentrics). */
+static bool in_triangle(const lu_mesh *me, uint32_t tri, lu_vec3 s) {
+    lu_vec3 a = me->positions[me->indices[3u * tri]];
+    lu_vec3 e1 = lu_v3_sub(me->positions[me->indices[3u * tri + 1]], a);
+    lu_vec3 e2 = lu_v3_sub(me->positions[me->indices[3u * tri + 2]], a), w = lu_v3_sub(s, a);
+    double d00 = lu_v3_dot(e1, e1), d01 = lu_v3_dot(e1, e2), d11 = lu_v3_dot(e2, e2);
+    double d20 = lu_v3_dot(w, e1), d21 = lu_v3_dot(w, e2), den = d00 * d11 - d01 * d01;
+    if (!(den > 0.0)) return false;
+    double b1 = (d11 * d20 - d01 * d21) / den, b2 = (d00 * d21 - d01 * d20) / den;
+    return b1 >= 0.0 && b2 >= 0.0 && b1 + b2 <= 1.0;
+}
+
+/* The hop walk from x along `seed`: a facet with a solution, verified by the
+ * ray from x towards it meeting that facet first. */
+static bool hop_walk(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, lu_vec3 seed, pt_mnee_path *out) {
     const pt_medium *pm = &st->media[m];
     lu_vec3 dir = seed;
     lu_hit hit;
@@ -118,4 +142,56 @@ bool lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, lu_ve
         hit = h2;
     }
     return false;
+}
+
+static bool listed(const uint32_t *list, int n, uint32_t v) {
+    for (int i = 0; i < n; i++)
+        if (list[i] == v) return true;
+    return false;
+}
+
+int lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, const lu_vec3 *seeds, int nseeds,
+                     pt_mnee_path *out, int cap) {
+    const pt_medium *pm = &st->media[m];
+    const lu_mesh *me = &st->scene->media[m].boundary;
+    uint32_t tried[PT_MNEE_TRIED], queue[PT_MNEE_TRIED];
+    int miss[PT_MNEE_TRIED]; /* facets without a solution passed on the way */
+    int nt = 0, n = 0;
+    for (int k = 0; k < nseeds && n < cap && nt < PT_MNEE_TRIED; k++) {
+        pt_mnee_path c;
+        if (!hop_walk(st, m, kl, x, seeds[k], &c) || listed(tried, nt, c.prim)) continue;
+        /* The facets with a solution form patches (several where the facets'
+         * refracted beams overlap, as they do under a convex boundary, which
+         * focuses light): grow the patch across edges from the walk's facet,
+         * through facets that hold a solution. */
+        int qh = 0, qt = 0;
+        tried[nt++] = c.prim;
+        queue[qt] = c.prim;
+        miss[qt++] = 0;
+        out[n++] = c;
+        while (qh < qt && n < cap) {
+            uint32_t f = queue[qh];
+            int fm = miss[qh++];
+            for (int e = 0; e < 3 && n < cap && nt < PT_MNEE_TRIED; e++) {
+                uint32_t g = pm->neighbours ? pm->neighbours[3u * f + e] : UINT32_MAX;
+                if (g == UINT32_MAX || listed(tried, nt, g)) continue;
+                tried[nt++] = g;
+                const uint32_t *ix = &me->indices[3u * g];
+                lu_vec3 a = me->positions[ix[0]];
+                lu_vec3 ng = lu_v3_norm(
+                    lu_v3_cross(lu_v3_sub(me->positions[ix[1]], a), lu_v3_sub(me->positions[ix[2]], a)));
+                bool hit = facet_solve(kl, pm->eta, a, ng, x, &c) && in_triangle(me, g, c.s);
+                if (hit) {
+                    c.ns = ng;
+                    c.prim = g;
+                    out[n++] = c;
+                }
+                if (hit || fm < PT_MNEE_GAP) {
+                    queue[qt] = g;
+                    miss[qt++] = hit ? 0 : fm + 1;
+                }
+            }
+        }
+    }
+    return n;
 }

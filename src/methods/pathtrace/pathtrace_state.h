@@ -65,6 +65,7 @@ typedef struct pt_medium {
     lu_accel *inside;   /* its boundary alone, for inside tests */
     float v0[3], vlog[3]; /* constant media: Dwivedi's v0 per channel and ln((v0 + 1) / (v0 - 1)) */
     float guide_prob;     /* share of guided steps in the mixture; 0: not guided */
+    uint32_t *neighbours; /* refracting boundaries: triangle adjacency (methods/common/mesh_adjacency.h) */
 } pt_medium;
 
 enum { SURF_OPAQUE = 0, SURF_BOUNDARY };
@@ -206,10 +207,13 @@ bool lu_pt_guide_applies(const pt_state *st, int m, uint64_t mask);
 pt_flight lu_pt_guided_step(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, lu_vec3 n_out, bool guided, float phase,
                             int hero, lu_vec3 *beta, lu_vec3 *r, lu_k_rng *rng, lu_hit *hit, bool *has);
 
-/* pathtrace_mnee.c: from x inside refracting medium m, the point on m's
- * boundary where light kl refracts towards x, walking the boundary's facets
- * from the first one the ray from x along `seed` meets; false if the walk
- * finds none. */
-bool lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, lu_vec3 seed, pt_mnee_path *out);
+/* pathtrace_mnee.c: from x inside refracting medium m, the points on m's
+ * boundary where light kl refracts towards x: a walk over the facets from
+ * the first one each ray from x along seeds[k] meets, then the patch of
+ * neighbouring facets that also hold one. Returns how many (at most cap),
+ * each on its own facet. */
+#define PT_MNEE_MAX 16
+int lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, const lu_vec3 *seeds, int nseeds,
+                     pt_mnee_path *out, int cap);
 
 #endif
