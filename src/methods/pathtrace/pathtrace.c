@@ -26,17 +26,17 @@
  *     or diffuse) constant medium the ray cast is fused with the free flight,
  *     and guide=dwivedi mixes Dwivedi-guided steps into the walk
  *     (pathtrace_guide.c);
- *   - a delta light behind a refracting boundary cannot be reached by
- *     next-event estimation. Light subpaths carry the light through the
- *     specular chain; their segments after the first specular event are
+ *   - a delta light behind a refracting boundary cannot be reached by a
+ *     straight shadow ray. Through exactly one refraction, manifold
+ *     next-event estimation (pathtrace_mnee.c) finds the boundary points
+ *     where its light refracts towards each camera vertex (single scattering
+ *     along the camera ray included; the walk samples internal reflections
+ *     itself). Longer specular chains: light subpaths carry the light
+ *     through them, their segments after the second specular event (or
+ *     after a first one that is not a refraction into a medium) are
  *     "beams", and each camera vertex connects to a point on each beam
- *     (equiangular or exponential, Kulla and Fajardo 2012). A vertex inside a
- *     refracting medium also makes its own beam: a uniform direction finds a
- *     boundary point s where the light refracts in. Both strategies make the
- *     single-refraction beams and are combined there by the balance
- *     heuristic; no strategy reaches a beam point that is the only scattering
- *     vertex between two specular chains (single scattering seen through a
- *     refracting boundary, Walter et al. 2009), which is missing.
+ *     (equiangular or exponential, Kulla and Fajardo 2012); the segment
+ *     after a single refraction is no beam, so nothing is counted twice.
  * Depth counts scattering vertices (volume events and surface bounces, not
  * dielectric interface events): depth 1 is single scattering and reproduces
  * `reference`.
@@ -44,7 +44,8 @@
  * Over 800 lines: one path's strategies (next-event estimation, beams, light
  * subpaths, the interface events) share its private state
  * (pathtrace_state.h) and helpers; free flight and the subsurface walk's
- * steps live in pathtrace_walk.c, the Dwivedi sampling in pathtrace_guide.c. */
+ * steps live in pathtrace_walk.c, the Dwivedi sampling in pathtrace_guide.c,
+ * the manifold solver in pathtrace_mnee.c. */
 #include <lucent/lucent.h>
 
 #include <stdatomic.h>
