@@ -9,7 +9,10 @@
  *     integral along the view ray exp(-sigma_t z (1 + 1 / mu_t));
  *   - max_depth=1, a point light on the view axis: the paraxial irradiance
  *     I T / (h + z / eta)^2 (the source at its apparent height) integrated
- *     along the axis by Gauss-Legendre quadrature;
+ *     along the axis by Gauss-Legendre quadrature; and beside it: along the
+ *     view line, the refraction point by bisection on Snell's law and the
+ *     irradiance from the ray tube's spreading by finite differences (not the
+ *     renderer's closed form), integrated the same way;
  *   - all orders: by reciprocity the radiance seen along the normal under
  *     directional lights at the Gauss-Legendre nodes mu_k of [0, 1], each of
  *     irradiance 2 pi w_k, is the half-space's albedo for light along the
@@ -134,6 +137,98 @@ static void test_single_scattering_point(void) {
     lu_image_destroy(&img);
 }
 
+/* ---- a point light at oblique incidence: the ray tube by finite differences ---------------- */
+
+typedef struct v3d {
+    double x, y, z;
+} v3d;
+
+static v3d vd(double x, double y, double z) { return (v3d){x, y, z}; }
+static v3d vadd(v3d a, v3d b) { return vd(a.x + b.x, a.y + b.y, a.z + b.z); }
+static v3d vsc(v3d a, double s) { return vd(a.x * s, a.y * s, a.z * s); }
+static double vdot(v3d a, v3d b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static v3d vcross(v3d a, v3d b) { return vd(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x); }
+static v3d vnorm(v3d a) { return vsc(a, 1.0 / sqrt(vdot(a, a))); }
+
+/* Snell's law at the plane y = 0 (normal +y) for a ray travelling along unit d (d.y < 0). */
+static v3d refract_down(v3d d) {
+    double ci = -d.y, r = 1.0 / ETA, ct = sqrt(1.0 - r * r * (1.0 - ci * ci));
+    return vnorm(vadd(vsc(d, r), vsc(vd(0, 1, 0), r * ci - ct)));
+}
+
+/* Where the ray from the light at lp along d, refracted at y = 0, meets the
+ * plane through x with normal t. */
+static v3d tube_point(v3d lp, v3d d, v3d x, v3d t) {
+    v3d p = vadd(lp, vsc(d, lp.y / -d.y));
+    v3d tr = refract_down(d);
+    return vadd(p, vsc(tr, vdot(vadd(x, vsc(p, -1)), t) / vdot(tr, t)));
+}
+
+static void test_single_scattering_point_oblique(void) {
+    /* Point light 2 units above the surface; the camera looks straight down
+     * 1.5 units beside it, 0.25 degrees wide (the view rays stay within 0.05
+     * units of the line, a change in irradiance below 1e-3 of it). Along
+     * the view line at depth z the light's refraction point is found by
+     * bisection on Snell's law, and the irradiance facing the refracted ray
+     * from the spreading of the ray tube: the emission direction nudged two
+     * ways, the refracted rays intersected with the plane across the ray at
+     * x, intensity x solid angle / area. */
+    const double h = 2.0, X = 1.5, intensity = 20.0;
+    char lights[256], json[4096];
+    snprintf(lights, sizeof lights, "{\"type\": \"point\", \"position\": [0, %g, 0], \"intensity\": %g}", 50.0 + h,
+             intensity);
+    snprintf(json, sizeof json,
+             "{\"camera\": {\"position\": [%g, 60, 0.0001], \"look_at\": [%g, 0, 0], \"fov_y_deg\": 0.25,"
+             " \"width\": 16, \"height\": 16},"
+             " \"lights\": [%s],"
+             " \"media\": [{\"density\": {\"constant\": 1}, \"sigma_s\": [0.3, 0.6, 0.9], \"sigma_a\": [0.7, 0.4, 0.1],"
+             "   \"boundary\": {\"mesh\": {\"procedural\": \"box\", \"size\": [200, 100, 200]}, \"eta\": %g}}]}",
+             X, X, lights, ETA);
+    lu_image img = {0};
+    if (!lu_test_render_json(json, "pathtrace", "pathtrace.spp=64 pathtrace.max_depth=1 pathtrace.seed=8 pathtrace.boundary=refract", &img))
+        return;
+    /* In the surface's frame (top at y = 0): light at (0, h, 0), x = (X, -z, 0). */
+    enum { NQ = 48 };
+    double xq[NQ], wq[NQ];
+    lu_test_gauss_legendre(NQ, xq, wq);
+    double integral = 0.0; /* int_0^inf E(z) F_t(cos_i) exp(-(d2 + z)) dz, sigma_t = 1 */
+    v3d lp = vd(0, h, 0);
+    for (int i = 0; i < NQ; i++) {
+        double u = 0.5 * (xq[i] + 1.0), z = -log(1.0 - u) / 2.0, jac = 0.5 * wq[i] / (2.0 * (1.0 - u));
+        v3d x = vd(X, -z, 0);
+        double lo = 0.0, hi = X; /* the refraction point (r, 0, 0): sin_i - eta sin_t rises in r */
+        for (int it = 0; it < 100; it++) {
+            double r = 0.5 * (lo + hi);
+            double f = r / sqrt(r * r + h * h) - ETA * (X - r) / sqrt((X - r) * (X - r) + z * z);
+            if (f > 0) hi = r;
+            else lo = r;
+        }
+        v3d s = vd(0.5 * (lo + hi), 0, 0);
+        v3d d = vnorm(vadd(s, vsc(lp, -1))), t = refract_down(d);
+        v3d e1 = vnorm(vcross(d, vd(0, 0, 1))), e2 = vcross(d, e1);
+        const double eps = 1e-6;
+        v3d p0 = tube_point(lp, d, x, t);
+        v3d a = vadd(tube_point(lp, vnorm(vadd(d, vsc(e1, eps))), x, t), vsc(p0, -1));
+        v3d b = vadd(tube_point(lp, vnorm(vadd(d, vsc(e2, eps))), x, t), vsc(p0, -1));
+        double area = sqrt(vdot(vcross(a, b), vcross(a, b)));
+        double e_perp = intensity * eps * eps / area;
+        double d2 = sqrt(vdot(vadd(x, vsc(s, -1)), vadd(x, vsc(s, -1))));
+        integral += jac * exp(-2.0 * z) * e_perp * fresnel_t(-d.y) * exp(-(d2 - z));
+    }
+    for (int c = 0; c < 3; c++) {
+        double want = fresnel_t(1.0) / (ETA * ETA) * k_sigma_s[c] / (4.0 * M_PI) * integral;
+        double got, se;
+        channel_stats(&img, c, &got, &se);
+        fprintf(stderr,
+                "  single scattering, point light at oblique incidence, channel %d: path tracer %.6f +- %.6f, ray-tube "
+                "quadrature %.6f\n",
+                c, got, se, want);
+        CHECK_NEAR(got, want, 3.0 * se + 1e-3 * want);
+        CHECK(se < 0.01 * want);
+    }
+    lu_image_destroy(&img);
+}
+
 static void test_halfspace_albedo_against_walk(void) {
     char lights[2048], json[4096];
     double mu[NL], w[NL];
@@ -167,6 +262,7 @@ static void test_halfspace_albedo_against_walk(void) {
 int main(void) {
     RUN_TEST(test_single_scattering_directional);
     RUN_TEST(test_single_scattering_point);
+    RUN_TEST(test_single_scattering_point_oblique);
     RUN_TEST(test_halfspace_albedo_against_walk);
     TEST_EXIT();
 }
