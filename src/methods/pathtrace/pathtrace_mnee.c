@@ -26,8 +26,9 @@
 
 #include <math.h>
 
-/* Facet hops before the walk gives up (a cycle between facets: a gap of the
- * refracted light field, or a solution it cannot reach). */
+/* Facet hops before the walk gives up; it stops sooner at a cycle between
+ * facets (a gap of the refracted light field, or a solution it cannot
+ * reach). */
 #define PT_MNEE_HOPS 16
 /* Facets tried per vertex and light, over every patch (a patch grows only
  * through facets with a solution, a handful where facets are small against
@@ -70,7 +71,7 @@ static bool facet_solve(lu_k_light kl, float eta, lu_vec3 p, lu_vec3 n, lu_vec3 
     double r = 0.0;
     if (D > 1e-7 * (h1 + h2)) {
         double lo = 0.0, hi = D;
-        r = D * h1 / (h1 + h2); /* the straight line's crossing */
+        r = eta * D * h1 / (h2 + eta * h1); /* the paraxial root (sines as tangents) */
         for (int it = 0; it < 64; it++) {
             double a = sqrt(r * r + h1 * h1), b = sqrt((D - r) * (D - r) + h2 * h2);
             double f = r / a - eta * (D - r) / b;
@@ -79,7 +80,7 @@ static bool facet_solve(lu_k_light kl, float eta, lu_vec3 p, lu_vec3 n, lu_vec3 
             double fp = h1 * h1 / (a * a * a) + eta * h2 * h2 / (b * b * b);
             double rn = r - f / fp;
             if (!(rn > lo && rn < hi)) rn = 0.5 * (lo + hi);
-            bool done = fabs(rn - r) <= 1e-12 * (D + h1 + h2);
+            bool done = fabs(rn - r) <= 1e-9 * (D + h1 + h2); /* float output */
             r = rn;
             if (done) break;
         }
@@ -123,7 +124,12 @@ static bool hop_walk(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, lu_vec
     lu_vec3 dir = seed;
     lu_hit hit;
     if (!lu_accel_closest(pm->inside, x, dir, 0.0f, LU_K_FAR, &hit)) return false;
+    uint32_t seen[PT_MNEE_HOPS];
     for (int hop = 0; hop < PT_MNEE_HOPS; hop++) {
+        /* The walk is deterministic: a facet met again is a cycle. */
+        for (int i = 0; i < hop; i++)
+            if (seen[i] == hit.prim_id) return false;
+        seen[hop] = hit.prim_id;
         /* A facet seen from inside faces away from x (outward normals). */
         if (!(lu_v3_dot(hit.ng, dir) > 0.0f)) return false;
         lu_vec3 p = lu_v3_madd(x, dir, hit.t);
@@ -144,6 +150,27 @@ static bool hop_walk(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, lu_vec
     return false;
 }
 
+/* A cheap rejection for point and spot lights: on the plane of triangle
+ * tri (unit normal n), the solution lies between the paraxial root (sines
+ * taken as tangents, which puts it nearer the light's foot) and the foot of
+ * x; false when that segment lies wholly outside one of the triangle's
+ * edges. */
+static bool point_may_hit(const lu_mesh *me, uint32_t tri, lu_vec3 n, lu_vec3 lp, lu_vec3 x, float eta) {
+    const uint32_t *ix = &me->indices[3u * tri];
+    lu_vec3 v[3] = {me->positions[ix[0]], me->positions[ix[1]], me->positions[ix[2]]};
+    float h1 = lu_v3_dot(lu_v3_sub(lp, v[0]), n), h2 = lu_v3_dot(lu_v3_sub(v[0], x), n);
+    if (!(h1 > 0.0f) || !(h2 > 0.0f)) return false;
+    lu_vec3 lf = lu_v3_madd(lp, n, -h1), xf = lu_v3_madd(x, n, h2);
+    lu_vec3 pp = lu_v3_madd(lf, lu_v3_sub(xf, lf), eta * h1 / (h2 + eta * h1));
+    for (int e = 0; e < 3; e++) {
+        lu_vec3 ed = lu_v3_sub(v[(e + 1) % 3], v[e]);
+        float s0 = lu_v3_dot(lu_v3_cross(ed, lu_v3_sub(pp, v[e])), n);
+        float s1 = lu_v3_dot(lu_v3_cross(ed, lu_v3_sub(xf, v[e])), n);
+        if (s0 < 0.0f && s1 < 0.0f) return false;
+    }
+    return true;
+}
+
 static bool listed(const uint32_t *list, int n, uint32_t v) {
     for (int i = 0; i < n; i++)
         if (list[i] == v) return true;
@@ -157,7 +184,9 @@ int lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, const 
     uint32_t tried[PT_MNEE_TRIED], queue[PT_MNEE_TRIED];
     int miss[PT_MNEE_TRIED]; /* facets without a solution passed on the way */
     int nt = 0, n = 0;
-    for (int k = 0; k < nseeds && n < cap && nt < PT_MNEE_TRIED; k++) {
+    /* A later guess only when the earlier ones found nothing: the patch
+     * search covers a connected solution set from any facet of it. */
+    for (int k = 0; k < nseeds && n == 0 && nt < PT_MNEE_TRIED; k++) {
         pt_mnee_path c;
         if (!hop_walk(st, m, kl, x, seeds[k], &c) || listed(tried, nt, c.prim)) continue;
         /* The facets with a solution form patches (several where the facets'
@@ -180,7 +209,8 @@ int lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, const 
                 lu_vec3 a = me->positions[ix[0]];
                 lu_vec3 ng = lu_v3_norm(
                     lu_v3_cross(lu_v3_sub(me->positions[ix[1]], a), lu_v3_sub(me->positions[ix[2]], a)));
-                bool hit = facet_solve(kl, pm->eta, a, ng, x, &c) && in_triangle(me, g, c.s);
+                bool hit = (kl.type == LU_K_LIGHT_DIRECTIONAL || point_may_hit(me, g, ng, kl.position, x, pm->eta)) &&
+                           facet_solve(kl, pm->eta, a, ng, x, &c) && in_triangle(me, g, c.s);
                 if (hit) {
                     c.ns = ng;
                     c.prim = g;
