@@ -192,7 +192,8 @@ int lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, const 
         /* The facets with a solution form patches (several where the facets'
          * refracted beams overlap, as they do under a convex boundary, which
          * focuses light): grow the patch across edges from the walk's facet,
-         * through facets that hold a solution. */
+         * through facets that hold a solution and past at most PT_MNEE_GAP
+         * facets in a row that do not. */
         int qh = 0, qt = 0;
         tried[nt++] = c.prim;
         queue[qt] = c.prim;
