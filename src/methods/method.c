@@ -250,6 +250,15 @@ lu_result lu_renderer_make(const lu_renderer_desc *desc, const lu_scene *scene, 
     if (r != LU_OK) {
         lu_frame_stage_destroy(rd->stage);
         lu_free(rd);
+        /* AUTO promised a working renderer, not a GPU: a device that cannot
+         * be made (or was lost while preparing) leaves the CPU. */
+        bool from_auto = !desc || desc->backend == LU_BACKEND_AUTO;
+        if (r == LU_ERR_BACKEND && from_auto && d.backend == LU_BACKEND_GPU && (m->backends & LU_BACKEND_CPU)) {
+            lu_log_msg(LU_LOG_WARNING, "lucent: %s on the GPU failed (%s); using the CPU\n", m->name, err ? err->message : "");
+            lu_renderer_desc cpu = d;
+            cpu.backend = LU_BACKEND_CPU;
+            return lu_renderer_make(&cpu, scene, out, err);
+        }
         return r;
     }
     *out = rd;
