@@ -1,7 +1,9 @@
 /* lucent bench SCENE.json... --methods a,b — per-frame time after warm-up,
  * prepare time, peak memory, and error against the reference of the same
  * scene, all measured in one run (docs/architecture.md §8); parameter sweeps,
- * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c). */
+ * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c).
+ * Over 800 lines: one command whose options, motions, rows and table
+ * writers all share the row type; a job's merge of rows is cli/mpi.c's. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -9,6 +11,7 @@
 #include <sys/stat.h>
 
 #include "cli.h"
+#include "mpi_job.h"
 
 static void usage(void) {
     printf("usage: lucent bench SCENE.json... --methods a,b,... [options]\n"
@@ -53,7 +56,11 @@ static void usage(void) {
            "first and the last timed state of each motion; when reference is among --methods\n"
            "it reuses that render rather than rendering twice. Each run also times a fixed\n"
            "yardstick (trilinear samples over a 128^3 grid on all processors) and states each\n"
-           "frame as frame time x yardstick throughput / pixels (spp_eq).\n");
+           "frame as frame time x yardstick throughput / pixels (spp_eq).\n"
+           "\n"
+           "Under mpirun or srun (a build with MPI) the ranks take whole scenes from a\n"
+           "work queue (all of a scene's rows on one rank, spp_eq by that rank's own\n"
+           "yardstick) and rank 0 prints and writes the merged table (docs/distributed.md).\n");
 }
 
 /* ---- motions ------------------------------------------------------------- */
@@ -342,6 +349,10 @@ typedef struct row {
     bool has_err;
     double rel_l2_first, rel_l2_last, last_vs_first;
     double spp_equiv, load_avg;
+    /* A row travels to rank 0 as bytes (cli/mpi.c); these name what its
+     * pointers point to, to point them again there. */
+    int scene_index, seq;
+    char method_name[64];
 } row;
 
 static int cmp_double(const void *a, const void *b) {
@@ -527,9 +538,18 @@ static void scene_stem(const char *path, char *out, size_t n) {
     if (dot && strcmp(dot, ".json") == 0) *dot = '\0';
 }
 
+static int cmp_rows(const void *a, const void *b) {
+    const row *x = a, *y = b;
+    if (x->scene_index != y->scene_index) return x->scene_index < y->scene_index ? -1 : 1;
+    return (x->seq > y->seq) - (x->seq < y->seq);
+}
+
+typedef struct bench_opts bench_opts;
+static lu_result gather_rows(const bench_opts *o, row **rows, int *nrows, lu_error *err);
+
 /* ---- the command --------------------------------------------------------- */
 
-typedef struct bench_opts {
+struct bench_opts {
     const char *scenes[MAX_SCENES];
     int nscenes;
     char *methods[MAX_METHODS];
@@ -544,7 +564,7 @@ typedef struct bench_opts {
     const char *csv, *json, *ref_path, *img_dir;
     bool no_truth, no_yardstick;
     unsigned tracking;         /* bit 0: rows with change tracking, bit 1: rows without */
-} bench_opts;
+};
 
 static int parse_motions(const char *arg, bool *motions) {
     char buf[256];
@@ -824,6 +844,35 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
     return res;
 }
 
+/* Every rank's rows on rank 0, in scene order (a job of one too, where it
+ * changes nothing); the other ranks keep none. */
+static lu_result gather_rows(const bench_opts *o, row **rows, int *nrows, lu_error *err) {
+    for (int i = 0; i < *nrows; i++) {
+        row *r = &(*rows)[i];
+        r->seq = i;
+        snprintf(r->method_name, sizeof r->method_name, "%s", r->method);
+    }
+    void *all;
+    size_t bytes;
+    lu_result res = lu_mpi_gather(*rows, (size_t)*nrows * sizeof(row), &all, &bytes, err);
+    if (res != LU_OK) return res;
+    *nrows = (int)(bytes / sizeof(row));
+    if (lu_mpi_rank() != 0) return LU_OK;
+    if (*nrows > MAX_ROWS) {
+        free(all);
+        return lu_fail(err, LU_ERR_LIMIT, "more than %d rows", MAX_ROWS);
+    }
+    memcpy(*rows, all, bytes);
+    free(all);
+    for (int i = 0; i < *nrows; i++) {
+        row *r = &(*rows)[i];
+        r->scene = o->scenes[r->scene_index];
+        r->method = lu_method_find(r->method_name)->name;
+    }
+    qsort(*rows, (size_t)*nrows, sizeof(row), cmp_rows);
+    return LU_OK;
+}
+
 int lu_cmd_bench(int argc, char **argv) {
     bench_opts o;
     memset(&o, 0, sizeof o);
@@ -853,14 +902,26 @@ int lu_cmd_bench(int argc, char **argv) {
         gsps = o.no_yardstick ? 0.0 : lu_yardstick_gsps(5, &ys_threads);
         if (gsps <= 0.0 && !o.no_yardstick) rc = lu_cli_error("bench", &(lu_error){LU_ERR_NOMEM, "out of memory for the yardstick"});
     }
-    for (int s = 0; s < o.nscenes && rc == LU_EXIT_OK; s++) {
+    /* In a job, whole scenes go to the ranks from a work queue: all of a
+     * scene's rows (its truth, methods, sweeps) are timed on one rank, so
+     * they stay ratios within one run. */
+    if (rc == LU_EXIT_OK && lu_mpi_size() > 1 && o.img_dir)
+        rc = lu_cli_usage("bench", "--save-images: in a job of several ranks only rank 0 writes; run without it");
+    if (rc == LU_EXIT_OK && lu_mpi_queue_open(o.nscenes, &err) != LU_OK) rc = lu_cli_error("bench", &err);
+    for (int s; rc == LU_EXIT_OK && (s = lu_mpi_queue_next()) >= 0;) {
         lu_scene scene;
+        if (lu_mpi_size() > 1)
+            fprintf(stderr, "lucent bench: rank %d of %d: %s\n", lu_mpi_rank(), lu_mpi_size(), o.scenes[s]);
         rc = lu_cli_load_scene("bench", o.scenes[s], o.width, o.height, &scene);
         if (rc != LU_EXIT_OK) break;
+        int first = nrows;
         if (bench_scene(&o, o.scenes[s], &scene, gsps, rows, &nrows, &err) != LU_OK) rc = lu_cli_error("bench", &err);
+        for (int i = first; i < nrows; i++) rows[i].scene_index = s;
         lu_scene_destroy(&scene);
     }
-    if (rc == LU_EXIT_OK) {
+    lu_mpi_queue_close();
+    if (rc == LU_EXIT_OK && gather_rows(&o, &rows, &nrows, &err) != LU_OK) rc = lu_cli_error("bench", &err);
+    if (rc == LU_EXIT_OK && lu_mpi_rank() == 0) {
         /* Timed again at the end: the two differ when the machine's load
          * changed during the run, and then so does the meaning of spp_eq. */
         double gsps_end = o.no_yardstick ? 0.0 : lu_yardstick_gsps(5, &ys_threads);

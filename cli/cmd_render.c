@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "mpi_job.h"
 
 static void usage(void) {
     printf("usage: lucent render SCENE.json [options] -o OUT.{png,exr,pfm}\n"
@@ -26,7 +27,11 @@ static void usage(void) {
            "Prints prepare and render times on stderr. The output folder is checked\n"
            "before the work starts. The file is written under a temporary name and\n"
            "renamed, so a failed or interrupted render (SIGINT: exit 130) leaves no\n"
-           "partial file; with --progressive-every the last complete image stays.\n");
+           "partial file; with --progressive-every the last complete image stays.\n"
+           "\n"
+           "Under mpirun or srun (a build with MPI) the ranks divide the image's rows\n"
+           "and rank 0 alone writes the output; the image is the same, bit for bit\n"
+           "(docs/distributed.md): mpirun -n 4 lucent render SCENE.json ... -o OUT\n");
 }
 
 /* --progressive-every: each partial image replaces the output file
@@ -109,7 +114,8 @@ int lu_cmd_render(int argc, char **argv) {
         lu_kv_free(&settings);
         return rc;
     }
-    lu_cli_guard_output(out_path);
+    bool writer = lu_mpi_rank() == 0;   /* in a job, rank 0 alone writes the output */
+    if (writer) lu_cli_guard_output(out_path);
     lu_renderer *r = NULL;
     lu_image img = {0};
     progressive_sink sink = {out_path, &save};
@@ -124,15 +130,26 @@ int lu_cmd_render(int argc, char **argv) {
         cr = lu_renderer_create(method, &scene, &settings, backend, &r, &err);
     }
     bool created = cr == LU_OK;
-    if (created && progressive_every > 0 && !lu_renderer_set_progressive(r, save_partial, &sink, progressive_every))
+    if (created && progressive_every > 0 && lu_mpi_size() > 1) {
+        /* Each rank runs every pass of its own rows: no rank holds a
+         * partial image of the whole frame. */
+        if (writer) fprintf(stderr, "lucent render: --progressive-every is ignored in a job of several ranks\n");
+    } else if (created && progressive_every > 0 && !lu_renderer_set_progressive(r, save_partial, &sink, progressive_every)) {
         fprintf(stderr, "lucent render: %s renders in one pass; --progressive-every ignored\n", method);
-    if (!created || lu_renderer_render(r, &scene, &img, &err) != LU_OK ||
-        lu_image_save(&img, out_path, &save, &err) != LU_OK) {
+    }
+    double t_job = lu_time_seconds();
+    if (!created || lu_mpi_render(r, &scene, &img, method, &err) != LU_OK ||
+        (writer && lu_image_save(&img, out_path, &save, &err) != LU_OK)) {
         rc = lu_cli_error("render", &err);
-    } else {
-        fprintf(stderr, "lucent render: %s %dx%d with %s on %s: prepare %.1f ms, render %.1f ms\n", out_path, img.width,
-                img.height, method, lu_backend_name(backend), lu_cli_stats(r).prepare_ms,
-                lu_cli_stats(r).frame_ms);
+    } else if (writer) {
+        /* In a job: the wall time until the whole image was on rank 0. */
+        double render_ms = lu_mpi_size() > 1 ? 1e3 * (lu_time_seconds() - t_job) : lu_cli_stats(r).frame_ms;
+        fprintf(stderr, "lucent render: %s %dx%d with %s on %s: prepare %.1f ms, render %.1f ms", out_path, img.width,
+                img.height, method, lu_backend_name(backend), lu_cli_stats(r).prepare_ms, render_ms);
+        if (lu_mpi_size() > 1)
+            fprintf(stderr, " (%d ranks, %d thread%s each)", lu_mpi_size(), lu_thread_count(),
+                    lu_thread_count() == 1 ? "" : "s");
+        fputc('\n', stderr);
     }
     lu_renderer_destroy(r);
     lu_image_destroy(&img);
