@@ -6,7 +6,9 @@
 
 #include "mpi_job.h"
 
+#include <pthread.h>
 #include <sched.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,6 +21,11 @@
 #endif
 
 static int g_rank = 0, g_size = 1;
+#ifdef LU_HAVE_MPI
+static int g_thread_level = MPI_THREAD_SINGLE;   /* what MPI_Init_thread provided */
+/* While the queue is open, its calls and the progress thread's take turns. */
+static pthread_mutex_t g_mpi_mu = PTHREAD_MUTEX_INITIALIZER;
+#endif
 
 int lu_mpi_rank(void) { return g_rank; }
 int lu_mpi_size(void) { return g_size; }
@@ -64,9 +71,11 @@ static int rank_threads(void) {
 
 int lu_mpi_begin(int *argc, char ***argv) {
     if (!launched_as_rank()) return LU_EXIT_OK;
-    int provided;
-    /* Only the main thread calls MPI; the worker pool never does. */
-    if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
+    /* The main thread calls MPI, and on rank 0 the queue's progress thread
+     * (below), one at a time (g_mpi_mu); the worker pool never does.
+     * SERIALIZED rather than MULTIPLE: Open MPI's one-sided component for
+     * TCP refuses MULTIPLE. */
+    if (MPI_Init_thread(argc, argv, MPI_THREAD_SERIALIZED, &g_thread_level) != MPI_SUCCESS) {
         fprintf(stderr, "lucent: error: mpi: MPI_Init_thread failed\n");
         return LU_EXIT_FAIL;
     }
@@ -109,14 +118,36 @@ typedef struct queue {
     int64_t count;
     int64_t local_next;  /* a job of one counts here */
     bool open, holding;  /* holding: an item taken and not yet reported done */
+    pthread_t progress;
+    bool progress_on;
+    atomic_bool stop;
 } queue;
 
 static queue g_queue;
 
+/* Where the network has no atomics of its own (TCP: Open MPI's one-sided
+ * component then works by messages), a Fetch_and_op on rank 0's counters
+ * completes only when rank 0 enters MPI, which the main thread does only
+ * between its own bands: the other ranks would wait up to a band for their
+ * next one. This thread enters MPI every 2 ms meanwhile. */
+static void *progress_main(void *arg) {
+    (void)arg;
+    while (!atomic_load(&g_queue.stop)) {
+        int flag;
+        pthread_mutex_lock(&g_mpi_mu);
+        MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_SELF, &flag, MPI_STATUS_IGNORE);
+        pthread_mutex_unlock(&g_mpi_mu);
+        usleep(2000);
+    }
+    return NULL;
+}
+
 static int64_t queue_op(int slot, int64_t add, MPI_Op op) {
     int64_t got = 0;
+    pthread_mutex_lock(&g_mpi_mu);
     MPI_Fetch_and_op(&add, &got, MPI_INT64_T, 0, slot, op, g_queue.win);
     MPI_Win_flush(0, g_queue.win);
+    pthread_mutex_unlock(&g_mpi_mu);
     return got;
 }
 
@@ -133,6 +164,9 @@ lu_result lu_mpi_queue_open(int count, lu_error *err) {
     MPI_Barrier(MPI_COMM_WORLD);
     MPI_Win_lock_all(0, g_queue.win);
     g_queue.open = true;
+    atomic_store(&g_queue.stop, false);
+    if (g_rank == 0 && g_thread_level >= MPI_THREAD_SERIALIZED)
+        g_queue.progress_on = pthread_create(&g_queue.progress, NULL, progress_main, NULL) == 0;
     return LU_OK;
 }
 
@@ -148,6 +182,10 @@ int lu_mpi_queue_next(void) {
 static int64_t queue_done(void) { return g_size == 1 ? g_queue.local_next : queue_op(Q_DONE, 0, MPI_NO_OP); }
 
 void lu_mpi_queue_close(void) {
+    if (g_queue.progress_on) {
+        atomic_store(&g_queue.stop, true);
+        pthread_join(g_queue.progress, NULL);
+    }
     if (g_size > 1 && g_queue.open) {
         MPI_Win_unlock_all(g_queue.win);
         MPI_Win_free(&g_queue.win);
@@ -248,6 +286,7 @@ typedef struct band_source {
     int bands, height;
     int *taken;            /* the bands this rank rendered, in order */
     int ntaken;
+    double wait_s;         /* in the queue: asking for bands */
     lu_progress bar;       /* rank 0 */
 } band_source;
 
@@ -264,8 +303,10 @@ static void job_bar_update(band_source *b) {
 
 static bool next_band(void *user, int *y0, int *y1) {
     band_source *b = user;
+    double t0 = lu_time_seconds();
     int k = lu_mpi_queue_next();
     job_bar_update(b);
+    b->wait_s += lu_time_seconds() - t0;
     if (k < 0) return false;
     b->taken[b->ntaken++] = k;
     *y0 = k * LU_MPI_BAND_ROWS;
@@ -277,7 +318,7 @@ static bool next_band(void *user, int *y0, int *y1) {
  * and pixels. */
 typedef struct rank_report {
     int32_t bands, pad;
-    double render_ms, rows_ms;
+    double render_ms, rows_ms, wait_ms;
 } rank_report;
 
 lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, const char *label, lu_error *err) {
@@ -335,7 +376,7 @@ lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, co
         return lu_fail(err, LU_ERR_NOMEM, "mpi: out of memory for %zu bytes of bands", bytes);
     }
     lu_renderer_stats st = lu_cli_stats(r);
-    rank_report rep = {b.ntaken, 0, st.render_ms, st.rows_ms};
+    rank_report rep = {b.ntaken, 0, st.render_ms, st.rows_ms, 1e3 * b.wait_s};
     memcpy(pack, &rep, sizeof rep);
     char *p = pack + sizeof rep;
     for (int i = 0; i < b.ntaken; i++, p += sizeof(int32_t)) {
@@ -365,8 +406,11 @@ lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, co
         const char *ids = q;
         q += (size_t)rr.bands * sizeof(int32_t);
         if (label)
-            fprintf(stderr, "lucent: rank %d of %d: %d of %d bands; render %.1f ms: global stages %.1f ms, bands %.1f ms\n",
-                    rank, lu_mpi_size(), rr.bands, b.bands, rr.render_ms, rr.render_ms - rr.rows_ms, rr.rows_ms);
+            fprintf(stderr,
+                    "lucent: rank %d of %d: %d of %d bands; render %.1f ms: global stages %.1f ms, bands %.1f ms, "
+                    "queue %.1f ms\n",
+                    rank, lu_mpi_size(), rr.bands, b.bands, rr.render_ms, rr.render_ms - rr.rows_ms - rr.wait_ms,
+                    rr.rows_ms, rr.wait_ms);
         for (int i = 0; i < rr.bands; i++) {
             int32_t id;
             memcpy(&id, ids + (size_t)i * sizeof id, sizeof id);
