@@ -22,6 +22,9 @@ static void usage(void) {
            "  --half              EXR only: store half floats\n"
            "  --progressive-every N  progressive methods (pathtrace): rewrite the output\n"
            "                      every N passes (samples per pixel) while rendering\n"
+           "  --band-rows N       in a job of several ranks: rows per band of the work queue\n"
+           "                      (default 16, whole tiles of bssrdf and ddod); fewer rows\n"
+           "                      balance many ranks better on a long render\n"
            "  -o, --output FILE   output image; the format follows the extension\n"
            "\n"
            "Prints prepare and render times on stderr. The output folder is checked\n"
@@ -55,7 +58,7 @@ int lu_cmd_render(int argc, char **argv) {
     lu_backend backend = LU_BACKEND_CPU;
     lu_kvlist settings = {0};
     lu_image_save_desc save = {0};
-    int width = 0, height = 0, progressive_every = 0;
+    int width = 0, height = 0, progressive_every = 0, band_rows = 0;
     lu_error err = {0};
     int rc = LU_EXIT_OK;
     for (int i = 1; i < argc; i++) {
@@ -85,6 +88,13 @@ int lu_cmd_render(int argc, char **argv) {
                 rc = lu_cli_usage("render", "--progressive-every takes a positive integer");
             else
                 progressive_every = (int)n;
+        } else if (strcmp(a, "--band-rows") == 0 && has_next) {
+            char *end;
+            long n = strtol(argv[++i], &end, 10);
+            if (*end || n < 1 || n > LU_MAX_IMAGE_DIM)
+                rc = lu_cli_usage("render", "--band-rows takes a positive integer up to %d", LU_MAX_IMAGE_DIM);
+            else
+                band_rows = (int)n;
         } else if (strcmp(a, "--half") == 0) {
             save.exr_half = true;
         } else if ((strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) && has_next) {
@@ -138,7 +148,7 @@ int lu_cmd_render(int argc, char **argv) {
         fprintf(stderr, "lucent render: %s renders in one pass; --progressive-every ignored\n", method);
     }
     double t_job = lu_time_seconds();
-    if (!created || lu_mpi_render(r, &scene, &img, method, &err) != LU_OK ||
+    if (!created || lu_mpi_render(r, &scene, &img, band_rows, method, &err) != LU_OK ||
         (writer && lu_image_save(&img, out_path, &save, &err) != LU_OK)) {
         rc = lu_cli_error("render", &err);
     } else if (writer) {

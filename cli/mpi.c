@@ -283,7 +283,7 @@ lu_result lu_mpi_gather(const void *data, size_t bytes, void **all, size_t *tota
 /* ---- one frame divided among the ranks ---- */
 
 typedef struct band_source {
-    int bands, height;
+    int bands, height, rows;   /* rows: per band */
     int *taken;            /* the bands this rank rendered, in order */
     int ntaken;
     double wait_s;         /* in the queue: asking for bands */
@@ -309,8 +309,8 @@ static bool next_band(void *user, int *y0, int *y1) {
     b->wait_s += lu_time_seconds() - t0;
     if (k < 0) return false;
     b->taken[b->ntaken++] = k;
-    *y0 = k * LU_MPI_BAND_ROWS;
-    *y1 = *y0 + LU_MPI_BAND_ROWS < b->height ? *y0 + LU_MPI_BAND_ROWS : b->height;
+    *y0 = k * b->rows;
+    *y1 = *y0 + b->rows < b->height ? *y0 + b->rows : b->height;
     return true;
 }
 
@@ -321,7 +321,14 @@ typedef struct rank_report {
     double render_ms, rows_ms, wait_ms;
 } rank_report;
 
-lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, const char *label, lu_error *err) {
+/* Rows of band k of b. */
+static int band_rows(const band_source *b, int k) {
+    int y0 = k * b->rows;
+    return y0 + b->rows < b->height ? b->rows : b->height - y0;
+}
+
+lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, int rows_per_band, const char *label,
+                        lu_error *err) {
     if (lu_mpi_size() == 1) return lu_renderer_render(r, scene, out, err);
     const lu_camera *c = &scene->camera;
     if (out->width == 0) {
@@ -330,7 +337,8 @@ lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, co
     }
     band_source b = {0};
     b.height = c->height;
-    b.bands = (c->height + LU_MPI_BAND_ROWS - 1) / LU_MPI_BAND_ROWS;
+    b.rows = rows_per_band > 0 ? rows_per_band : LU_MPI_BAND_ROWS;
+    b.bands = (c->height + b.rows - 1) / b.rows;
     b.taken = malloc((size_t)b.bands * sizeof *b.taken);
     if (!b.taken) return lu_fail(err, LU_ERR_NOMEM, "mpi: out of memory");
     lu_result res = lu_mpi_queue_open(b.bands, err);
@@ -365,10 +373,7 @@ lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, co
     /* Pack: report, band ids, then each band's rows. */
     size_t row_floats = (size_t)c->width * 3;
     size_t rows = 0;
-    for (int i = 0; i < b.ntaken; i++) {
-        int y0 = b.taken[i] * LU_MPI_BAND_ROWS;
-        rows += (size_t)(y0 + LU_MPI_BAND_ROWS < c->height ? LU_MPI_BAND_ROWS : c->height - y0);
-    }
+    for (int i = 0; i < b.ntaken; i++) rows += (size_t)band_rows(&b, b.taken[i]);
     size_t bytes = sizeof(rank_report) + (size_t)b.ntaken * sizeof(int32_t) + rows * row_floats * sizeof(float);
     char *pack = malloc(bytes);
     if (!pack) {
@@ -384,10 +389,8 @@ lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, co
         memcpy(p, &id, sizeof id);
     }
     for (int i = 0; i < b.ntaken; i++) {
-        int y0 = b.taken[i] * LU_MPI_BAND_ROWS;
-        int n = y0 + LU_MPI_BAND_ROWS < c->height ? LU_MPI_BAND_ROWS : c->height - y0;
-        size_t len = (size_t)n * row_floats * sizeof(float);
-        memcpy(p, out->rgb + (size_t)y0 * row_floats, len);
+        size_t len = (size_t)band_rows(&b, b.taken[i]) * row_floats * sizeof(float);
+        memcpy(p, out->rgb + (size_t)b.taken[i] * b.rows * row_floats, len);
         p += len;
     }
     free(b.taken);
@@ -414,10 +417,8 @@ lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, co
         for (int i = 0; i < rr.bands; i++) {
             int32_t id;
             memcpy(&id, ids + (size_t)i * sizeof id, sizeof id);
-            int y0 = id * LU_MPI_BAND_ROWS;
-            int n = y0 + LU_MPI_BAND_ROWS < c->height ? LU_MPI_BAND_ROWS : c->height - y0;
-            size_t len = (size_t)n * row_floats * sizeof(float);
-            if (rank != 0) memcpy(out->rgb + (size_t)y0 * row_floats, q, len);
+            size_t len = (size_t)band_rows(&b, id) * row_floats * sizeof(float);
+            if (rank != 0) memcpy(out->rgb + (size_t)id * b.rows * row_floats, q, len);
             q += len;
         }
     }

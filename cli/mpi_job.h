@@ -9,8 +9,8 @@
 
 #include <lucent/lucent.h>
 
-/* Rows per band handed out by the work queue: a multiple of the 16-pixel
- * tiles of bssrdf and ddod, so no tile is rendered by two ranks. */
+/* Rows per band handed out by the work queue, by default: a multiple of the
+ * 16-pixel tiles of bssrdf and ddod, so no tile is rendered by two ranks. */
 #define LU_MPI_BAND_ROWS 16
 
 /* Joins the job when a launcher started this process (its environment says
@@ -25,13 +25,15 @@ int lu_mpi_end(int rc);
 int lu_mpi_rank(void);
 int lu_mpi_size(void);   /* 1: not distributed */
 
-/* Renders one frame divided among the ranks: bands of LU_MPI_BAND_ROWS rows
+/* Renders one frame divided among the ranks: bands of rows_per_band rows
+ * (0: LU_MPI_BAND_ROWS)
  * from a work queue on rank 0 (every rank renders, rank 0 too), gathered on
  * rank 0, whose *out then holds the whole image, bit for bit what
  * lu_renderer_render gives; the other ranks' *out is partial. On rank 0, a
  * progress bar of the bands done by all ranks, and (label non-NULL) one line
  * per rank: its global stages and its bands. */
-lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, const char *label, lu_error *err);
+lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, int rows_per_band, const char *label,
+                        lu_error *err);
 
 /* A work queue over `count` items (bench's scenes): the next item for this
  * rank, or -1 when all are taken. One queue at a time, opened by every rank

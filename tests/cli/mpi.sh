@@ -29,14 +29,17 @@ mpi() {
 fail=0
 scene=$src/scenes/layered_cube.json
 
-same() { # NAME ARGS... : one process, then 2 and 3 ranks, byte for byte
+same() { # NAME ARGS... : one process, then 2 and 3 ranks, and 2 ranks by
+          # bands of 5 rows (bssrdf: tiles cut by bands), byte for byte
   local name=$1; shift
   "$lucent" render "$@" -o "$tmp/$name-1.pfm" 2>"$tmp/err.txt" || { echo "FAIL: $name single"; cat "$tmp/err.txt"; fail=1; return; }
-  for n in 2 3; do
-    if ! mpi -n $n "$lucent" render "$@" -o "$tmp/$name-$n.pfm" >"$tmp/out.txt" 2>&1; then
-      echo "FAIL: $name with $n ranks failed"; cat "$tmp/out.txt"; fail=1; continue
+  for job in 2 3 "2 --band-rows 5"; do
+    local n=${job%% *} extra=()
+    [ "$job" = "$n" ] || extra=(${job#* })
+    if ! mpi -n $n "$lucent" render "$@" "${extra[@]}" -o "$tmp/$name-$n.pfm" >"$tmp/out.txt" 2>&1; then
+      echo "FAIL: $name with $job ranks failed"; cat "$tmp/out.txt"; fail=1; continue
     fi
-    cmp -s "$tmp/$name-1.pfm" "$tmp/$name-$n.pfm" || { echo "FAIL: $name: $n ranks wrote other bytes than one process"; fail=1; }
+    cmp -s "$tmp/$name-1.pfm" "$tmp/$name-$n.pfm" || { echo "FAIL: $name: $job ranks wrote other bytes than one process"; fail=1; }
     grep -q "rank $((n - 1)) of $n: " "$tmp/out.txt" || { echo "FAIL: $name: no report of rank $((n - 1))"; cat "$tmp/out.txt"; fail=1; }
     ls "$tmp"/*.tmp.* >/dev/null 2>&1 && { echo "FAIL: $name: a temporary file stayed"; fail=1; }
   done
