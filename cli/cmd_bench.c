@@ -886,9 +886,15 @@ int lu_cmd_bench(int argc, char **argv) {
         rows = calloc(MAX_ROWS, sizeof *rows);
         if (!rows) rc = lu_cli_error("bench", &(lu_error){LU_ERR_NOMEM, "out of memory"});
     }
-    /* Every output is checked before the first frame: a sweep can run for hours. */
-    if (rc == LU_EXIT_OK && o.csv) rc = lu_cli_check_output("bench", o.csv);
-    if (rc == LU_EXIT_OK && o.json) rc = lu_cli_check_output("bench", o.json);
+    /* The images are each rank's, and only rank 0 writes. */
+    if (rc == LU_EXIT_OK && lu_mpi_size() > 1 && o.img_dir)
+        rc = lu_cli_usage("bench", "--save-images: in a job of several ranks only rank 0 writes; run without it");
+    /* Every output is checked before the first frame: a sweep can run for
+     * hours. Only rank 0 writes the tables: only its file system needs
+     * their folders. */
+    bool writer = lu_mpi_rank() == 0;
+    if (rc == LU_EXIT_OK && o.csv && writer) rc = lu_cli_check_output("bench", o.csv);
+    if (rc == LU_EXIT_OK && o.json && writer) rc = lu_cli_check_output("bench", o.json);
     if (rc == LU_EXIT_OK && o.img_dir) {
         char probe[1100];
         snprintf(probe, sizeof probe, "%s/truth.exr", o.img_dir);
@@ -905,8 +911,6 @@ int lu_cmd_bench(int argc, char **argv) {
     /* In a job, whole scenes go to the ranks from a work queue: all of a
      * scene's rows (its truth, methods, sweeps) are timed on one rank, so
      * they stay ratios within one run. */
-    if (rc == LU_EXIT_OK && lu_mpi_size() > 1 && o.img_dir)
-        rc = lu_cli_usage("bench", "--save-images: in a job of several ranks only rank 0 writes; run without it");
     if (rc == LU_EXIT_OK && lu_mpi_queue_open(o.nscenes, &err) != LU_OK) rc = lu_cli_error("bench", &err);
     for (int s; rc == LU_EXIT_OK && (s = lu_mpi_queue_next()) >= 0;) {
         lu_scene scene;

@@ -112,7 +112,8 @@ int lu_cmd_render(int argc, char **argv) {
     if (rc == LU_EXIT_OK && !out_path) rc = lu_cli_usage("render", "missing -o OUT");
     if (rc == LU_EXIT_OK && lu_image_format_from_path(out_path) == LU_IMAGE_AUTO)
         rc = lu_cli_usage("render", "cannot tell the image format of \"%s\" (use .png, .exr or .pfm)", out_path);
-    if (rc == LU_EXIT_OK) rc = lu_cli_check_output("render", out_path);
+    /* Only the writer's file system needs the output folder. */
+    if (rc == LU_EXIT_OK && lu_mpi_rank() == 0) rc = lu_cli_check_output("render", out_path);
     if (rc != LU_EXIT_OK) {
         lu_kv_free(&settings);
         return rc;

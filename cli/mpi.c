@@ -354,10 +354,13 @@ lu_result lu_mpi_render(lu_renderer *r, const lu_scene *scene, lu_image *out, in
         free(b.taken);
         return res;
     }
-    /* Rank 0 keeps the job's bar moving until the last band is in. */
-    while (lu_mpi_rank() == 0 && queue_done() < b.bands) {
+    /* Every rank waits here, asleep, until the last band is in: in the
+     * gather an MPI library polls, which would take a processor from the
+     * ranks still rendering where ranks share a machine. Rank 0 keeps the
+     * job's bar moving meanwhile. */
+    while (queue_done() < b.bands) {
         job_bar_update(&b);
-        usleep(20000);
+        usleep(lu_mpi_rank() == 0 ? 20000 : 50000);
     }
     lu_mpi_queue_close();
     if (lu_mpi_rank() == 0) {
