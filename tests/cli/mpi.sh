@@ -13,6 +13,9 @@ set -u
 lucent=$1
 src=$2
 [ -n "${LU_MPIEXEC:-}" ] || { echo "skipped: built without MPI"; exit 77; }
+# The launch options below are Open MPI's (the MPI scripts/setup.sh installs).
+"$LU_MPIEXEC" --version 2>/dev/null | grep -q "Open MPI" ||
+  { echo "skipped: $LU_MPIEXEC is not Open MPI's launcher"; exit 77; }
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 # CI runs as root, which mpirun refuses without these.
