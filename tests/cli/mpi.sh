@@ -14,7 +14,7 @@ lucent=$1
 src=$2
 [ -n "${LU_MPIEXEC:-}" ] || { echo "skipped: built without MPI"; exit 77; }
 # The launch options below are Open MPI's (the MPI scripts/setup.sh installs).
-"$LU_MPIEXEC" --version 2>/dev/null | grep -q "Open MPI" ||
+"$LU_MPIEXEC" --version 2>/dev/null | grep -qiE "open ?mpi|open-mpi|OpenRTE" ||
   { echo "skipped: $LU_MPIEXEC is not Open MPI's launcher"; exit 77; }
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
