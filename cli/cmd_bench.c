@@ -349,6 +349,7 @@ typedef struct row {
     bool has_err;
     double rel_l2_first, rel_l2_last, last_vs_first;
     double spp_equiv, load_avg;
+    double gsps;            /* the yardstick spp_equiv used: in a job, its rank's */
     /* A row travels to rank 0 as bytes (cli/mpi.c); these name what its
      * pointers point to, to point them again there. */
     int scene_index, seq;
@@ -460,7 +461,7 @@ static void print_table(FILE *f, const row *rows, int n) {
     }
 }
 
-static bool write_csv(const char *path, const row *rows, int n, double gsps, lu_error *err) {
+static bool write_csv(const char *path, const row *rows, int n, lu_error *err) {
     lu_atomic_file af;
     if (lu_atomic_open(&af, path, err) != LU_OK) return false;
     FILE *f = af.fp;
@@ -479,7 +480,7 @@ static bool write_csv(const char *path, const row *rows, int n, double gsps, lu_
         fprintf(f, "%s,%s,", k_motion_names[r->motion], r->params);
         if (r->has_err) fprintf(f, "%.6g,%.6g,", r->rel_l2_first, r->rel_l2_last);
         else fprintf(f, ",,");
-        fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d\n", r->last_vs_first, r->spp_equiv, gsps, r->load_avg, r->width,
+        fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d\n", r->last_vs_first, r->spp_equiv, r->gsps, r->load_avg, r->width,
                 r->height, lu_thread_count());
     }
     return lu_atomic_commit(&af, err) == LU_OK;
@@ -523,7 +524,7 @@ static bool write_json(const char *path, const row *rows, int n, double gsps, do
             fprintf(f, ", \"rel_l2\": %.6g, \"rel_l1\": %.6g, \"psnr\": %.4f, \"rel_l2_first\": %.6g, \"rel_l2_last\": %.6g",
                     r->err.rel_l2, r->err.rel_l1, psnr_out(r->err.psnr), r->rel_l2_first, r->rel_l2_last);
         fprintf(f, ", \"rel_l2_last_vs_first\": %.6g, \"spp_equiv\": %.2f, \"yardstick_gsps\": %.4f, \"load_avg\": %.2f}%s\n",
-                r->last_vs_first, r->spp_equiv, gsps, r->load_avg, i + 1 < n ? "," : "");
+                r->last_vs_first, r->spp_equiv, r->gsps, r->load_avg, i + 1 < n ? "," : "");
     }
     fprintf(f, "]}\n");
     return lu_atomic_commit(&af, err) == LU_OK;
@@ -819,6 +820,7 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     if (res == LU_OK) r->last_vs_first = d.rel_l2;
                     if (res == LU_OK) {
                         r->spp_equiv = r->median_ms * 1e-3 * gsps * 1e9 / (double)pixels;
+                        r->gsps = gsps;
                         r->load_avg = load_avg_1min();
                     }
                     if (res == LU_OK && o->img_dir) {
@@ -939,7 +941,7 @@ int lu_cmd_bench(int argc, char **argv) {
                "%.2f %.2f %.2f at the end\n",
                gsps, gsps_end, ys_threads, load0, l[0], l[1], l[2]);
         print_table(stdout, rows, nrows);
-        if (o.csv && !write_csv(o.csv, rows, nrows, gsps, &err)) rc = lu_cli_error("bench", &err);
+        if (o.csv && !write_csv(o.csv, rows, nrows, &err)) rc = lu_cli_error("bench", &err);
         if (o.json && !write_json(o.json, rows, nrows, gsps, gsps_end, ys_threads, o.scenes[0], &err))
             rc = lu_cli_error("bench", &err);
     }
