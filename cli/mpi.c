@@ -41,6 +41,16 @@ static bool launched_as_rank(void) {
     return false;
 }
 
+/* A job of one gathers its own bytes. */
+static lu_result gather_alone(const void *data, size_t bytes, void **all, size_t *total, lu_error *err) {
+    *total = 0;
+    *all = malloc(bytes ? bytes : 1);
+    if (!*all) return lu_fail(err, LU_ERR_NOMEM, "out of memory");
+    memcpy(*all, data, bytes);
+    *total = bytes;
+    return LU_OK;
+}
+
 #ifdef LU_HAVE_MPI
 
 /* The library's progress bars are each rank's own; in a job only rank 0's
@@ -196,15 +206,9 @@ void lu_mpi_queue_close(void) {
 /* ---- gathering ---- */
 
 lu_result lu_mpi_gather(const void *data, size_t bytes, void **all, size_t *total, lu_error *err) {
+    if (g_size == 1) return gather_alone(data, bytes, all, total, err);
     *all = NULL;
     *total = 0;
-    if (g_size == 1) {
-        *all = malloc(bytes ? bytes : 1);
-        if (!*all) return lu_fail(err, LU_ERR_NOMEM, "mpi: out of memory");
-        memcpy(*all, data, bytes);
-        *total = bytes;
-        return LU_OK;
-    }
     if (bytes > (size_t)0x7fffffff) return lu_fail(err, LU_ERR_LIMIT, "mpi: %zu bytes from one rank (at most 2^31 - 1)", bytes);
     int mine = (int)bytes;
     int *counts = NULL, *displs = NULL;
@@ -270,12 +274,7 @@ static int64_t queue_done(void) { return g_next; }
 void lu_mpi_queue_close(void) { g_next = g_count = 0; }
 
 lu_result lu_mpi_gather(const void *data, size_t bytes, void **all, size_t *total, lu_error *err) {
-    *all = malloc(bytes ? bytes : 1);
-    *total = 0;
-    if (!*all) return lu_fail(err, LU_ERR_NOMEM, "out of memory");
-    memcpy(*all, data, bytes);
-    *total = bytes;
-    return LU_OK;
+    return gather_alone(data, bytes, all, total, err);
 }
 
 #endif
