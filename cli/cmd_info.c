@@ -67,6 +67,12 @@ static void print_scene(const lu_scene *s) {
             printf(" %s [%.4g, %.4g, %.4g]\n", l->type == LU_LIGHT_DIRECTIONAL ? "irradiance" : "intensity",
                    l->intensity.x, l->intensity.y, l->intensity.z);
     }
+    if (lu_scene_animated(s)) {
+        int f0, f1;
+        printf("time      %.6g s at %.6g fps (frame %d)", s->time, s->fps > 0 ? s->fps : 24.0, lu_scene_frame_at(s, s->time));
+        if (lu_scene_frame_range(s, &f0, &f1)) printf(", sequences over frames %d-%d", f0, f1);
+        printf("\n");
+    }
     printf("media     %d\n", s->medium_count);
     for (int i = 0; i < s->medium_count; i++) {
         const lu_medium *m = &s->media[i];
@@ -75,6 +81,9 @@ static void print_scene(const lu_scene *s) {
                m->from_object >= 0 ? " (translucent object)" : "");
         if (m->kind == LU_DENSITY_GRID) print_grid("      ", &m->grid, &m->index_to_world);
         else printf("      density   constant %.4g\n", m->constant);
+        if (m->density_anim || m->emission_anim)
+            printf("      follows   the time (%s%s%s)\n", m->density_anim ? "density" : "",
+                   m->density_anim && m->emission_anim ? ", " : "", m->emission_anim ? "emission" : "");
         if (m->has_boundary) {
             printf("      boundary  eta %.3g, %u triangles\n", m->eta, m->boundary.triangle_count);
         }

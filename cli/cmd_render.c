@@ -1,4 +1,5 @@
-/* lucent render SCENE.json --method M [--set k=v ...] -o OUT */
+/* lucent render SCENE.json --method M [--set k=v ...] [--time T | --frame-range A-B] -o OUT */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +23,12 @@ static void usage(void) {
            "  --half              EXR only: store half floats\n"
            "  --progressive-every N  progressive methods (pathtrace): rewrite the output\n"
            "                      every N passes (samples per pixel) while rendering\n"
+           "  --time T            render the scene at time T seconds (default: the scene's \"time\");\n"
+           "                      sequences show frame floor(T x fps), held at their ends\n"
+           "  --frame-range A-B   render frames A to B (time F / fps for frame F) with one\n"
+           "                      renderer, each to OUT with the frame number in place of its\n"
+           "                      run of '#' (out_####.exr), or, without one, before the\n"
+           "                      extension (out.exr -> out_0001.exr)\n"
            "  --band-rows N       in a job of several ranks: rows per band of the work queue\n"
            "                      (default 16, whole tiles of bssrdf and ddod); fewer rows\n"
            "                      balance many ranks better on a long render\n"
@@ -32,9 +39,10 @@ static void usage(void) {
            "renamed, so a failed or interrupted render (SIGINT: exit 130) leaves no\n"
            "partial file; with --progressive-every the last complete image stays.\n"
            "\n"
-           "Under mpirun or srun (a build with MPI) the ranks divide the image's rows\n"
-           "and rank 0 alone writes the output; the image is the same, bit for bit\n"
-           "(docs/distributed.md): mpirun -n 4 lucent render SCENE.json ... -o OUT\n");
+           "Under mpirun or srun (a build with MPI) the ranks divide the image's rows,\n"
+           "or with --frame-range the frames, and rank 0 alone writes the output; the\n"
+           "images are the same, bit for bit (docs/distributed.md):\n"
+           "  mpirun -n 4 lucent render SCENE.json ... -o OUT\n");
 }
 
 /* --progressive-every: each partial image replaces the output file
@@ -53,12 +61,81 @@ static void save_partial(void *user, const lu_image *partial, int done, int tota
         fprintf(stderr, "lucent render: %s after %d of %d passes\n", s->path, done, total);
 }
 
+/* The output of frame f: its number in place of the run of '#' in out
+ * (zero-padded to the run's width), or "_%04d" before the extension; false
+ * when out has two runs of '#'. */
+static bool frame_path(const char *out, int f, char *dst, size_t size) {
+    const char *h = strchr(out, '#');
+    if (h) {
+        const char *e = h;
+        while (*e == '#') e++;
+        if (strchr(e, '#')) return false;
+        snprintf(dst, size, "%.*s%0*d%s", (int)(h - out), out, (int)(e - h), f, e);
+        return true;
+    }
+    const char *slash = strrchr(out, '/'), *dot = strrchr(out, '.');
+    if (!dot || (slash && dot < slash)) dot = out + strlen(out);
+    snprintf(dst, size, "%.*s_%04d%s", (int)(dot - out), out, f, dot);
+    return true;
+}
+
+/* --frame-range: one renderer for every frame a rank renders, so the frame
+ * stage rebuilds only what each time step touches. In a job the ranks take
+ * the frames in turn (round k: frame A + k x ranks + rank); rank 0 writes
+ * its own and then each other rank's frame of the round, in frame order,
+ * so it holds two images at a time. */
+static int render_frames(lu_renderer *r, lu_scene *scene, long frame_a, long frame_b, const char *out_path,
+                         const lu_image_save_desc *save, const char *method, lu_backend backend, lu_image *img) {
+    int ranks = lu_mpi_size(), me = lu_mpi_rank();
+    lu_error err = {0};
+    lu_image other = {0};
+    lu_result res = LU_OK;
+    for (long first = frame_a; first <= frame_b && res == LU_OK; first += ranks) {
+        long f = first + me;
+        double ms = 0.0;
+        if (f <= frame_b) {
+            res = lu_scene_set_time(scene, lu_scene_frame_time(scene, (int)f), &err);
+            if (res == LU_OK) res = lu_renderer_render(r, scene, img, &err);
+            ms = lu_cli_stats(r).frame_ms;
+        }
+        for (int k = 0; k < ranks && res == LU_OK; k++) {
+            long fk = first + k;
+            if (fk > frame_b) break;
+            if (me != 0) {
+                if (k == me) res = lu_mpi_send_image(img, ms, &err);
+                continue;
+            }
+            double msk = ms;
+            const lu_image *im = img;
+            if (k != 0) {
+                res = lu_mpi_recv_image(k, &other, &msk, &err);
+                im = &other;
+            }
+            char fp[1100];
+            frame_path(out_path, (int)fk, fp, sizeof fp);
+            lu_cli_guard_output(fp);
+            if (res == LU_OK) res = lu_image_save(im, fp, save, &err);
+            char by[32] = "";
+            if (ranks > 1) snprintf(by, sizeof by, " (rank %d)", k);
+            if (res == LU_OK)
+                fprintf(stderr, "lucent render: %s (frame %ld, time %g s) %dx%d with %s on %s: render %.1f ms%s\n", fp,
+                        fk, lu_scene_frame_time(scene, (int)fk), im->width, im->height, method,
+                        lu_backend_name(backend), msk, by);
+        }
+    }
+    lu_image_destroy(&other);
+    return res == LU_OK ? LU_EXIT_OK : lu_cli_error("render", &err);
+}
+
 int lu_cmd_render(int argc, char **argv) {
     const char *scene_path = NULL, *out_path = NULL, *method = "reference";
     lu_backend backend = LU_BACKEND_CPU;
     lu_kvlist settings = {0};
     lu_image_save_desc save = {0};
     int width = 0, height = 0, progressive_every = 0, band_rows = 0;
+    bool time_given = false, range_given = false;
+    double time = 0.0;
+    long frame_a = 0, frame_b = 0;
     lu_error err = {0};
     int rc = LU_EXIT_OK;
     for (int i = 1; i < argc; i++) {
@@ -88,6 +165,22 @@ int lu_cmd_render(int argc, char **argv) {
                 rc = lu_cli_usage("render", "--progressive-every takes a positive integer");
             else
                 progressive_every = (int)n;
+        } else if (strcmp(a, "--time") == 0 && has_next) {
+            char *end;
+            time = strtod(argv[++i], &end);
+            time_given = true;
+            if (*end || end == argv[i] || !isfinite(time) || fabs(time) > 1e6)
+                rc = lu_cli_usage("render", "--time takes seconds in [-1e6, 1e6] (\"%s\")", argv[i]);
+        } else if (strcmp(a, "--frame-range") == 0 && has_next) {
+            char *end, *end2;
+            const char *v = argv[++i];
+            frame_a = strtol(v, &end, 10);
+            frame_b = *end == '-' ? strtol(end + 1, &end2, 10) : -1;
+            range_given = true;
+            if (end == v || *end != '-' || *end2 || end2 == end + 1 || frame_a < 0 || frame_b < frame_a ||
+                frame_b > 1000000000L || frame_b - frame_a >= 100000)
+                rc = lu_cli_usage("render", "--frame-range takes A-B, whole frame numbers 0 <= A <= B, at most 100000 "
+                                            "frames (\"%s\")", v);
         } else if (strcmp(a, "--band-rows") == 0 && has_next) {
             char *end;
             long n = strtol(argv[++i], &end, 10);
@@ -110,10 +203,27 @@ int lu_cmd_render(int argc, char **argv) {
     }
     if (rc == LU_EXIT_OK && !scene_path) rc = lu_cli_usage("render", "missing SCENE.json");
     if (rc == LU_EXIT_OK && !out_path) rc = lu_cli_usage("render", "missing -o OUT");
+    if (rc == LU_EXIT_OK && time_given && range_given)
+        rc = lu_cli_usage("render", "give --time or --frame-range, not both");
+    if (rc == LU_EXIT_OK && range_given && progressive_every > 0)
+        rc = lu_cli_usage("render", "--progressive-every writes one image; it does not go with --frame-range");
     if (rc == LU_EXIT_OK && lu_image_format_from_path(out_path) == LU_IMAGE_AUTO)
         rc = lu_cli_usage("render", "cannot tell the image format of \"%s\" (use .png, .exr or .pfm)", out_path);
-    /* Only the writer's file system needs the output folder. */
-    if (rc == LU_EXIT_OK && lu_mpi_rank() == 0) rc = lu_cli_check_output("render", out_path);
+    /* Only the writer, rank 0 in a job, checks: only its file system needs
+     * the output folder. */
+    bool writer = lu_mpi_rank() == 0;
+    if (rc == LU_EXIT_OK && range_given && writer) {
+        /* every frame's output before any work */
+        for (long f = frame_a; f <= frame_b && rc == LU_EXIT_OK; f++) {
+            char fp[1100];
+            if (!frame_path(out_path, (int)f, fp, sizeof fp))
+                rc = lu_cli_usage("render", "-o \"%s\": more than one run of '#'", out_path);
+            else
+                rc = lu_cli_check_output("render", fp);
+        }
+    } else if (rc == LU_EXIT_OK && writer) {
+        rc = lu_cli_check_output("render", out_path);
+    }
     if (rc != LU_EXIT_OK) {
         lu_kv_free(&settings);
         return rc;
@@ -125,8 +235,22 @@ int lu_cmd_render(int argc, char **argv) {
         lu_kv_free(&settings);
         return rc;
     }
-    bool writer = lu_mpi_rank() == 0;   /* in a job, rank 0 alone writes the output */
-    if (writer) lu_cli_guard_output(out_path);
+    if ((time_given || range_given) && !lu_scene_animated(&scene))
+        fprintf(stderr, "lucent render: note: nothing in %s follows time; %s changes nothing\n", scene_path,
+                time_given ? "--time" : "--frame-range");
+    if (time_given && lu_scene_set_time(&scene, time, &err) != LU_OK) {
+        rc = lu_cli_error("render", &err);
+        lu_scene_destroy(&scene);
+        lu_kv_free(&settings);
+        return rc;
+    }
+    if (range_given && lu_scene_set_time(&scene, lu_scene_frame_time(&scene, (int)frame_a), &err) != LU_OK) {
+        rc = lu_cli_error("render", &err);
+        lu_scene_destroy(&scene);
+        lu_kv_free(&settings);
+        return rc;
+    }
+    if (!range_given && writer) lu_cli_guard_output(out_path);
     lu_renderer *r = NULL;
     lu_image img = {0};
     progressive_sink sink = {out_path, &save};
@@ -148,19 +272,25 @@ int lu_cmd_render(int argc, char **argv) {
     } else if (created && progressive_every > 0 && !lu_renderer_set_progressive(r, save_partial, &sink, progressive_every)) {
         fprintf(stderr, "lucent render: %s renders in one pass; --progressive-every ignored\n", method);
     }
-    double t_job = lu_time_seconds();
-    if (!created || lu_mpi_render(r, &scene, &img, band_rows, method, &err) != LU_OK ||
-        (writer && lu_image_save(&img, out_path, &save, &err) != LU_OK)) {
+    if (!created && range_given) {
         rc = lu_cli_error("render", &err);
-    } else if (writer) {
-        /* In a job: the wall time until the whole image was on rank 0. */
-        double render_ms = lu_mpi_size() > 1 ? 1e3 * (lu_time_seconds() - t_job) : lu_cli_stats(r).frame_ms;
-        fprintf(stderr, "lucent render: %s %dx%d with %s on %s: prepare %.1f ms, render %.1f ms", out_path, img.width,
-                img.height, method, lu_backend_name(backend), lu_cli_stats(r).prepare_ms, render_ms);
-        if (lu_mpi_size() > 1)
-            fprintf(stderr, " (%d ranks, %d thread%s each)", lu_mpi_size(), lu_thread_count(),
-                    lu_thread_count() == 1 ? "" : "s");
-        fputc('\n', stderr);
+    } else if (range_given) {
+        rc = render_frames(r, &scene, frame_a, frame_b, out_path, &save, method, backend, &img);
+    } else {
+        double t_job = lu_time_seconds();
+        if (!created || lu_mpi_render(r, &scene, &img, band_rows, method, &err) != LU_OK ||
+            (writer && lu_image_save(&img, out_path, &save, &err) != LU_OK)) {
+            rc = lu_cli_error("render", &err);
+        } else if (writer) {
+            /* In a job: the wall time until the whole image was on rank 0. */
+            double render_ms = lu_mpi_size() > 1 ? 1e3 * (lu_time_seconds() - t_job) : lu_cli_stats(r).frame_ms;
+            fprintf(stderr, "lucent render: %s %dx%d with %s on %s: prepare %.1f ms, render %.1f ms", out_path,
+                    img.width, img.height, method, lu_backend_name(backend), lu_cli_stats(r).prepare_ms, render_ms);
+            if (lu_mpi_size() > 1)
+                fprintf(stderr, " (%d ranks, %d thread%s each)", lu_mpi_size(), lu_thread_count(),
+                        lu_thread_count() == 1 ? "" : "s");
+            fputc('\n', stderr);
+        }
     }
     lu_renderer_destroy(r);
     lu_image_destroy(&img);

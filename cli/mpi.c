@@ -247,6 +247,47 @@ lu_result lu_mpi_gather(const void *data, size_t bytes, void **all, size_t *tota
     return LU_OK;
 }
 
+/* ---- single images ---- */
+
+enum { TAG_IMAGE_HEAD = 11, TAG_IMAGE_PIXELS = 12 };
+
+static void wait_asleep(MPI_Request *req) {
+    for (int done = 0;;) {
+        MPI_Test(req, &done, MPI_STATUS_IGNORE);
+        if (done) return;
+        usleep(2000);
+    }
+}
+
+lu_result lu_mpi_send_image(const lu_image *img, double value, lu_error *err) {
+    size_t n = (size_t)img->width * img->height * 3;
+    if (n > (size_t)0x7fffffff) return lu_fail(err, LU_ERR_LIMIT, "mpi: an image of %zu floats (at most 2^31 - 1)", n);
+    double head[3] = {img->width, img->height, value};
+    MPI_Request req;
+    MPI_Isend(head, 3, MPI_DOUBLE, 0, TAG_IMAGE_HEAD, MPI_COMM_WORLD, &req);
+    wait_asleep(&req);
+    MPI_Isend(img->rgb, (int)n, MPI_FLOAT, 0, TAG_IMAGE_PIXELS, MPI_COMM_WORLD, &req);
+    wait_asleep(&req);
+    return LU_OK;
+}
+
+lu_result lu_mpi_recv_image(int from, lu_image *img, double *value, lu_error *err) {
+    double head[3];
+    MPI_Request req;
+    MPI_Irecv(head, 3, MPI_DOUBLE, from, TAG_IMAGE_HEAD, MPI_COMM_WORLD, &req);
+    wait_asleep(&req);
+    int w = (int)head[0], h = (int)head[1];
+    if (img->width != w || img->height != h) {
+        lu_image_destroy(img);
+        lu_result r = lu_image_create(img, w, h, err);
+        if (r != LU_OK) return r;
+    }
+    MPI_Irecv(img->rgb, w * h * 3, MPI_FLOAT, from, TAG_IMAGE_PIXELS, MPI_COMM_WORLD, &req);
+    wait_asleep(&req);
+    *value = head[2];
+    return LU_OK;
+}
+
 #else /* no MPI: a job of one */
 
 int lu_mpi_begin(int *argc, char ***argv) {
@@ -259,6 +300,19 @@ int lu_mpi_begin(int *argc, char ***argv) {
 }
 
 int lu_mpi_end(int rc) { return rc; }
+
+/* A job of one sends nothing: rank 0 renders every frame itself. */
+lu_result lu_mpi_send_image(const lu_image *img, double value, lu_error *err) {
+    (void)img;
+    (void)value;
+    return lu_fail(err, LU_ERR_INVALID_ARG, "mpi: no other rank to send an image to");
+}
+
+lu_result lu_mpi_recv_image(int from, lu_image *img, double *value, lu_error *err) {
+    (void)img;
+    (void)value;
+    return lu_fail(err, LU_ERR_INVALID_ARG, "mpi: no rank %d to receive an image from", from);
+}
 
 static int64_t g_next, g_count;
 

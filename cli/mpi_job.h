@@ -42,6 +42,13 @@ lu_result lu_mpi_queue_open(int count, lu_error *err);
 int lu_mpi_queue_next(void);
 void lu_mpi_queue_close(void);
 
+/* One image from this rank to rank 0 (with a number that travels along,
+ * e.g. its render time), and rank 0's receipt of the next one from rank
+ * `from`, into *img (created or resized as needed). Both wait asleep, not
+ * polling a processor away from ranks still rendering. */
+lu_result lu_mpi_send_image(const lu_image *img, double value, lu_error *err);
+lu_result lu_mpi_recv_image(int from, lu_image *img, double *value, lu_error *err);
+
 /* Gathers each rank's `bytes` bytes on rank 0 in rank order: *all (freed
  * with free) and *total there; NULL and 0 on the others. */
 lu_result lu_mpi_gather(const void *data, size_t bytes, void **all, size_t *total, lu_error *err);

@@ -126,10 +126,18 @@ lu_result lu_grid_save_raw(const lu_grid *g, const char *path, lu_error *err);
  *     each voxel the exact average over its extent;
  *   torus_in_cube: torus around the y axis through `center`, ramped edge;
  *   dusty_room: bottom + (top - bottom) * t(y) + noise * fBm(3 octaves), >= 0;
- *   smoke_plume: widening column from the floor centre, peak density ~1.
+ *   smoke_plume: widening column from the floor centre, peak density ~1;
+ *     rise=0 time=0: with rise > 0 the plume is animated, its fBm
+ *     turbulence carried up the column by rise * time world units (rise in
+ *     world units per second) and the meander of its axis travelling up with
+ *     it; time 0 is the still plume.
  * Unknown names or parameters are errors naming `where`. */
 lu_result lu_grid_procedural(const char *name, const lu_kvlist *params, lu_grid *g, const char *where,
                              lu_error *err);
+/* Whether the generator's output changes with its "time" parameter
+ * ("smoke_plume" with rise > 0): a scene medium made by it follows the
+ * scene's time (lu_scene_set_time). */
+bool lu_grid_procedural_animated(const char *name, const lu_kvlist *params);
 
 #ifdef __cplusplus
 }

@@ -5,6 +5,7 @@
 # - pathtrace with 2 and 3 ranks writes the very bytes one process writes;
 # - one-shot methods by bands from the work queue (bssrdf: a light pass and
 #   16-pixel tiles; raymarch: maps and a view march) the same;
+# - a sequence's frames, taken by the ranks in turn, the same;
 # - bench over two scenes merges both ranks' rows on rank 0, in scene order;
 # - a rank that fails (its scene is missing) and a rank that dies (SIGSEGV)
 #   each end the whole job: a non-zero exit, a message, no output, no hang.
@@ -51,6 +52,22 @@ same pathtrace "$scene" --method pathtrace --size 64x64 --set pathtrace.spp=4
 same bssrdf "$src/scenes/bssrdf_spheres.json" --method bssrdf --size 64x64 --set bssrdf.splats=256 \
   --set bssrdf.map_res=48 --set bssrdf.table_size=64 --set bssrdf.prefilter=2
 same raymarch "$src/scenes/demo.json" --method raymarch --size 64x40
+
+# A sequence: the ranks take the frames in turn and rank 0 writes them all,
+# each the bytes of one process's frame (a renderer that skips frames
+# renders each as a fresh one would).
+seq=("$src/scenes/smoke_plume.json" --method raymarch --size 32x32 --frame-range 0-4)
+"$lucent" render "${seq[@]}" -o "$tmp/seq1_##.pfm" 2>/dev/null || { echo "FAIL: sequence single"; fail=1; }
+for n in 2 3; do
+  if mpi -n $n "$lucent" render "${seq[@]}" -o "$tmp/seq${n}_##.pfm" >"$tmp/out.txt" 2>&1; then
+    for f in 00 01 02 03 04; do
+      cmp -s "$tmp/seq1_$f.pfm" "$tmp/seq${n}_$f.pfm" || { echo "FAIL: sequence: frame $f with $n ranks differs"; fail=1; }
+    done
+    grep -q "frame 4, .*(rank $((4 % n)))" "$tmp/out.txt" || { echo "FAIL: sequence: frame 4 not from rank $((4 % n))"; cat "$tmp/out.txt"; fail=1; }
+  else
+    echo "FAIL: sequence with $n ranks"; cat "$tmp/out.txt"; fail=1
+  fi
+done
 
 # bench: two scenes, one per rank; the merged table lists the rows of one
 # process, scene by scene.

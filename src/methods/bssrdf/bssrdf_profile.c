@@ -56,40 +56,39 @@ static double radial_eval(const void *vctx, double r) {
     return 0.0;
 }
 
+/* One Simpson panel [2ih, 2ih + 2h] in t = ln r of 2 pi r^2 f(e^t). */
+static double eps_panel(lu_bssrdf_radial_fn f, const void *ctx, double t0, double h, int i) {
+    double ra = i ? exp(t0 + 2 * i * h) : exp(t0), rm = exp(t0 + (2 * i + 1) * h), rb = exp(t0 + (2 * i + 2) * h);
+    double fa = 2.0 * M_PI * ra * ra * f(ctx, ra), fm = 2.0 * M_PI * rm * rm * f(ctx, rm);
+    double fb = 2.0 * M_PI * rb * rb * f(ctx, rb);
+    return h / 3.0 * (fa + 4.0 * fm + fb);
+}
+
 /* Simpson in t = ln r of 2 pi r^2 f(e^t); r_max is where what lies beyond
- * drops below eps times ref (ref <= 0: times the total). The
- * crossing is interpolated linearly within the Simpson panel. */
+ * drops below eps times ref (ref <= 0: times the total). The crossing is
+ * interpolated linearly within the Simpson panel. Two passes over the
+ * panels (the total, then the crossing) rather than a stored running sum:
+ * this runs inside prepare, where an allocation could fail. */
 static double eps_radius_ref(lu_bssrdf_radial_fn f, const void *ctx, double r_lo, double r_hi, int n, double eps,
                              double ref, double *total) {
     if (n < 2) n = 2;
     if (n & 1) n++;
     double t0 = log(r_lo), t1 = log(r_hi), h = (t1 - t0) / n;
-    double *cum = lu_malloc((size_t)(n / 2 + 1) * sizeof *cum);
-    if (!cum) {
-        *total = 0.0;
-        return r_hi;
-    }
-    cum[0] = 0.0;
-    double fa = 2.0 * M_PI * r_lo * r_lo * f(ctx, r_lo);
+    double sum = 0.0;
+    for (int i = 0; i < n / 2; i++) sum += eps_panel(f, ctx, t0, h, i);
+    *total = sum;
+    double target = sum - eps * (ref > 0.0 ? ref : sum);
+    double cum = 0.0;
     for (int i = 0; i < n / 2; i++) {
-        double rm = exp(t0 + (2 * i + 1) * h), rb = exp(t0 + (2 * i + 2) * h);
-        double fm = 2.0 * M_PI * rm * rm * f(ctx, rm), fb = 2.0 * M_PI * rb * rb * f(ctx, rb);
-        cum[i + 1] = cum[i] + h / 3.0 * (fa + 4.0 * fm + fb);
-        fa = fb;
-    }
-    *total = cum[n / 2];
-    double target = *total - eps * (ref > 0.0 ? ref : *total);
-    double r_max = r_hi;
-    for (int i = 0; i < n / 2; i++) {
-        if (cum[i + 1] >= target) {
+        double next = cum + eps_panel(f, ctx, t0, h, i);
+        if (next >= target) {
             double a = exp(t0 + 2 * i * h), b = exp(t0 + (2 * i + 2) * h);
-            double w = cum[i + 1] > cum[i] ? (target - cum[i]) / (cum[i + 1] - cum[i]) : 1.0;
-            r_max = a + (b - a) * fmin(fmax(w, 0.0), 1.0);
-            break;
+            double w = next > cum ? (target - cum) / (next - cum) : 1.0;
+            return a + (b - a) * fmin(fmax(w, 0.0), 1.0);
         }
+        cum = next;
     }
-    lu_free(cum);
-    return r_max;
+    return r_hi;
 }
 
 double lu_bssrdf_eps_radius(lu_bssrdf_radial_fn f, const void *ctx, double r_lo, double r_hi, int n, double eps,

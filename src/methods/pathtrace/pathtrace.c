@@ -1068,11 +1068,11 @@ static void pt_destroy(void *state) {
     pt_state *st = state;
     if (!st) return;
     if (st->surf) lu_accel_destroy(st->surf);
-    for (int m = 0; m < st->medium_count; m++) {
+    for (int m = 0; st->media && m < st->medium_count; m++) {
         lu_pt_majorant_destroy(&st->media[m].maj);
         if (st->media[m].inside) lu_accel_destroy(st->media[m].inside);
     }
-    for (int i = 0; i < st->env_count; i++) env_destroy(&st->envs[i]);
+    for (int i = 0; st->envs && i < st->env_count; i++) env_destroy(&st->envs[i]);
     lu_free(st->envs);
     lu_free(st->media);
     lu_free(st->surf_info);
