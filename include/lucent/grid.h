@@ -1,4 +1,4 @@
-/* lucent/grid.h — dense float density grids: NanoVDB, raw, procedural.
+/* lucent/grid.h — dense float density grids: NanoVDB, OpenVDB, raw, procedural.
  *
  * Conventions (docs/architecture.md §7): voxel centres sit at integer index coordinates;
  * density between centres is trilinear; values outside [0, n-1] are 0, so the
@@ -88,6 +88,23 @@ lu_result lu_grid_load_nvdb(const char *path, const char *grid_name, lu_grid *g,
 /* The same from a file image in memory; `label` stands for the path in errors. */
 lu_result lu_grid_load_nvdb_memory(const void *data, size_t size, const char *label, const char *grid_name,
                                    lu_grid *g, lu_error *err);
+/* OpenVDB (.vdb): the float grid named grid_name (NULL or "" = the first
+ * float grid) with its transform, converted to NanoVDB and then read exactly
+ * as lu_grid_load_nvdb reads a file, with the same checks and results.
+ * OpenVDB's reader is not hardened against malformed files, so it runs in a
+ * child process, the converter lucent-vdb-convert (docs/volumes.md): a
+ * converter that crashes gives LU_ERR_FORMAT naming the file and the signal.
+ * Further failures, each naming the file: a missing file -> LU_ERR_IO; no
+ * converter -> LU_ERR_UNSUPPORTED; a name not in the file ->
+ * LU_ERR_INVALID_ARG (listing the grids); a grid of another value type, a
+ * non-linear (frustum) transform, a grid without active voxels or no float
+ * grid at all -> LU_ERR_UNSUPPORTED; a file OpenVDB cannot read ->
+ * LU_ERR_FORMAT with OpenVDB's reason. Safe to call from several threads. */
+lu_result lu_grid_load_vdb(const char *path, const char *grid_name, lu_grid *g, lu_error *err);
+/* Where lu_grid_load_vdb finds its converter (lu_host.vdb_converter, else
+ * beside the running executable, else the install's libexec/lucent), or
+ * LU_ERR_UNSUPPORTED saying where it looked. */
+lu_result lu_grid_vdb_converter(char *out, size_t cap, lu_error *err);
 /* Writes a NanoVDB float grid (values equal to 0 become inactive background),
  * fog-volume class, named g->name ("density" if empty), uncompressed, built
  * by NanoVDB's own GridBuilder (constant regions become tiles). Refuses

@@ -492,7 +492,7 @@ static lu_result add_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_scen
     return wrap_loader(c, p, lu_scene_builder_add_light(b, &l, c->err));
 }
 
-/* "density": {"constant": v} | {"file": "x.nvdb", "grid": "density"} |
+/* "density": {"constant": v} | {"file": "x.nvdb" or "x.vdb", "grid": "density"} |
  *            {"raw": "x.raw", "dims": [nx,ny,nz], "voxel_size": h, "origin": [x,y,z]} |
  *            {"procedural": NAME, ...params} */
 static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid,
@@ -558,11 +558,11 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
         TRY(get_string(c, d, &dp, "grid", false, &gname));
         char path[1024];
         lu_path_resolve(c->file, file, path, sizeof path);
-        if (!lu_path_has_suffix(path, ".nvdb")) {
+        bool vdb = lu_path_has_suffix(path, ".vdb");
+        if (!vdb && !lu_path_has_suffix(path, ".nvdb")) {
             jpath fp = jp_key(&dp, "file");
             return scene_fail(c, &fp, LU_ERR_UNSUPPORTED,
-                              "\"%s\" is not a .nvdb file (convert OpenVDB with nanovdb_convert; raw grids use \"raw\")",
-                              file);
+                              "\"%s\" is neither a .nvdb nor a .vdb file (raw grids use \"raw\")", file);
         }
         if (cJSON_HasObjectItem(d, "frames")) {
             int first = 0, last = 0;
@@ -576,7 +576,8 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
             jpath ep = jp_key(&dp, "extend");
             return scene_fail(c, &ep, LU_ERR_SCENE, "only meaningful with \"frames\"");
         }
-        return wrap_loader(c, &dp, lu_grid_load_nvdb(path, gname, grid, c->err));
+        return wrap_loader(c, &dp, vdb ? lu_grid_load_vdb(path, gname, grid, c->err)
+                                       : lu_grid_load_nvdb(path, gname, grid, c->err));
     }
     if (cJSON_HasObjectItem(d, "raw")) {
         static const char *const keys[] = {"raw", "dims", "voxel_size", "origin", NULL};

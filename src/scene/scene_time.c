@@ -87,12 +87,18 @@ static lu_vec3 voxel_size(const lu_affine *m) {
                  lu_v3_len(lu_v3(m->m[0][2], m->m[1][2], m->m[2][2])));
 }
 
+/* One frame's file: OpenVDB by its extension, else NanoVDB. */
+static lu_result load_file(const char *path, const char *grid_name, lu_grid *g, lu_error *err) {
+    return lu_path_has_suffix(path, ".vdb") ? lu_grid_load_vdb(path, grid_name, g, err)
+                                            : lu_grid_load_nvdb(path, grid_name, g, err);
+}
+
 /* Loads frame f (a number in range) over the union box. */
 static lu_result load_frame(const lu_grid_anim *a, int f, lu_grid *out, lu_error *err) {
     char path[1100];
     lu_grid_anim_frame_path(a, f, path, sizeof path);
     lu_grid g;
-    lu_result r = lu_grid_load_nvdb(path, a->grid_name[0] ? a->grid_name : NULL, &g, err);
+    lu_result r = load_file(path, a->grid_name[0] ? a->grid_name : NULL, &g, err);
     if (r != LU_OK) return r;
     lu_grid box = {0};
     box.index_to_world = a->map;
@@ -142,7 +148,7 @@ lu_result lu_grid_anim_sequence(const char *path, const char *grid_name, int fir
         char fp[1100];
         lu_grid_anim_frame_path(a, f, fp, sizeof fp);
         lu_grid fg;
-        r = lu_grid_load_nvdb(fp, a->grid_name[0] ? a->grid_name : NULL, &fg, err);
+        r = load_file(fp, a->grid_name[0] ? a->grid_name : NULL, &fg, err);
         if (r != LU_OK) {
             if (r == LU_ERR_IO) {
                 char inner[sizeof err->message];

@@ -6,6 +6,7 @@
 #include "methods/bssrdf/bssrdf_profile.h"
 
 #include <fftw3.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -734,6 +735,7 @@ typedef struct prefilter_job {
     float rho0;
     size_t level_entries;
     double gx[PREFILTER_NG], gw[PREFILTER_NG];   /* Gauss-Legendre on [-1, 1] */
+    atomic_bool nomem;                            /* a worker's scratch could not be allocated */
 } prefilter_job;
 
 /* One row (of nr entries) of every level; rows are independent. With the
@@ -749,7 +751,10 @@ static void prefilter_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     lu_bssrdf_profile *p = j->p;
     int rows_per_level = (int)(j->level_entries / p->nr);
     double *cum = lu_malloc((size_t)3 * p->nr * sizeof *cum);
-    if (!cum) return;
+    if (!cum) {
+        atomic_store(&j->nomem, true);
+        return;
+    }
     for (int64_t row = begin; row < end; row++) {
         const float *src = p->table + (size_t)row * 3 * p->nr;
         bool transmit = p->kind && row >= p->nd;
@@ -809,9 +814,10 @@ lu_result lu_bssrdf_profile_prefilter(lu_bssrdf_profile *p, int levels, float rh
     p->table = t;
     p->levels = levels;
     p->rho0 = rho0;
-    prefilter_job j = {p, levels, rho0, per, {0}, {0}};
+    prefilter_job j = {p, levels, rho0, per, {0}, {0}, false};
     lu_gauss_legendre(PREFILTER_NG, j.gx, j.gw);
     lu_parallel_for((int64_t)(per / p->nr), 1, prefilter_rows, &j, NULL);
+    if (atomic_load(&j.nomem)) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory (profile prefilter)");
     return LU_OK;
 }
 
