@@ -5,7 +5,7 @@ BUILD_ASAN  ?= build-asan
 JOBS        ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
-.PHONY: all run test test-fast test-quick asan tsan fuzz setup build clean
+.PHONY: all run test test-fast test-quick asan tsan fuzz soak setup build clean
 
 all: build
 
@@ -61,6 +61,12 @@ tsan: setup
 	cmake --build $(BUILD_TSAN) -j $(JOBS) --target test_concurrency test_parallel -- --no-print-directory
 	cd $(BUILD_TSAN) && TSAN_OPTIONS="halt_on_error=1 suppressions=$(CURDIR)/tests/tsan.supp" \
 	  ctest --output-on-failure -R '^test_(concurrency|parallel)$$'
+
+# The long runs kept out of the suite (about 30 minutes): the full
+# allocation-failure sweep, 1000 library frames per method, 2000 scripted
+# viewer frames under Xvfb, and their memory plot (scripts/soak.sh).
+soak: build
+	scripts/soak.sh $(BUILD)
 
 clean:
 	rm -rf $(BUILD) $(BUILD_ASAN) $(BUILD_TSAN) out
