@@ -4,9 +4,8 @@
 # (below the low end, above the high end, 1e300), NaN, infinities, a word,
 # and for choices an unknown name, must each end
 # `lucent render` with exit 1 or 2 and a one-line message naming the
-# setting, before any work: no crash (exit >= 128), no output file. Each
-# parameter's default must render. Also the environment variables the CLI
-# reads. The table of what is checked is the output of `lucent methods`.
+# setting, before any work: no crash (exit >= 128), no output file. Also
+# the environment variables the CLI reads. The table of what is checked is the output of `lucent methods`.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
 lucent=$1
