@@ -795,14 +795,6 @@ static GLFWwindow *open_window(int w, int h, const char *title) {
 
 /* ---- --stats ---- */
 
-static long rss_kb(void) {
-    FILE *f = fopen("/proc/self/statm", "r");
-    long pages = 0, res = 0;
-    if (!f) return 0;
-    if (fscanf(f, "%ld %ld", &pages, &res) != 2) res = 0;
-    fclose(f);
-    return res * (sysconf(_SC_PAGESIZE) / 1024);
-}
 
 /* A row per frame; the frame's image is kept while it shows the view of the
  * last rows (a new view drops the older images: they can never be compared
@@ -835,7 +827,7 @@ static bool stats_add(viewer *v, int frame, double ms, bool new_view) {
                          (!progressive(v) || v->passes >= param_value(v, "pathtrace", "spp")),
                      0};
     if (r->shown) memcpy(r->shown, v->shown.rgb, n * sizeof(float));
-    r->rss_kb = rss_kb();
+    r->rss_kb = lu_resident_kb();
     return true;
 }
 

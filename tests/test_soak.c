@@ -61,15 +61,6 @@ static void quiet_log(lu_log_level level, const char *message, void *user) {
     (void)level, (void)message, (void)user;
 }
 
-static long rss_kb(void) {
-    FILE *f = fopen("/proc/self/statm", "r");
-    long pages = 0, res = 0;
-    if (!f) return 0;
-    if (fscanf(f, "%ld %ld", &pages, &res) != 2) res = 0;
-    fclose(f);
-    return res * (sysconf(_SC_PAGESIZE) / 1024);
-}
-
 /* Rodrigues' turn of v about the unit axis u. */
 static lu_vec3 turn(lu_vec3 v, lu_vec3 u, float a) {
     float c = cosf(a), s = sinf(a), d = lu_v3_dot(u, v);
@@ -115,7 +106,7 @@ static void soak(const job *j, int frames, int w, int h, FILE *csv) {
         }
         res = lu_renderer_render(r, &s, &img, &err);
         bytes[f] = atomic_load(&g_bytes);
-        rss[f] = rss_kb();
+        rss[f] = lu_resident_kb();
         if (csv) fprintf(csv, "%s,%d,%lld,%ld\n", j->method, f, bytes[f], rss[f]);
     }
     CHECK_MSG(res == LU_OK, "%s: %s", j->method, err.message);

@@ -172,6 +172,10 @@ void *lu_calloc(size_t count, size_t size);   /* zeroed; NULL on overflow */
 void *lu_realloc(void *ptr, size_t size);
 void lu_free(void *ptr);
 char *lu_strdup(const char *s);
+/* The process's resident memory in KiB (Linux /proc/self/statm; 0 where
+ * unknown): the whole process, the libraries lucent uses included, for
+ * soak runs and the viewer's --stats. */
+long lu_resident_kb(void);
 
 /* Formats one message and hands it to the host's log (stderr by default);
  * LU_LOG_DEBUG only with lu_host.debug; LU_LOG_INFO and LU_LOG_PROGRESS not

@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "core/core_internal.h"
 
@@ -121,4 +122,13 @@ void lu_host_get(lu_host *out) {
     out->threads = lu_thread_count();
     out->cache_dir = lu_cache_dir_copy();
     out->vdb_converter = g_vdb_converter[0] ? g_vdb_converter : NULL;
+}
+
+long lu_resident_kb(void) {
+    FILE *f = fopen("/proc/self/statm", "r");
+    long pages = 0, res = 0;
+    if (!f) return 0;
+    if (fscanf(f, "%ld %ld", &pages, &res) != 2) res = 0;
+    fclose(f);
+    return res * (sysconf(_SC_PAGESIZE) / 1024);
 }
