@@ -512,11 +512,22 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
 static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid) {
     jpath dp = *pp;
     if (cJSON_HasObjectItem(d, "file")) {
-        static const char *const keys[] = {"file", "grid", NULL};
+        static const char *const keys[] = {"file", "grid", "storage", NULL};
         TRY(check_object(c, d, &dp, keys));
-        const char *file, *gname;
+        const char *file, *gname, *storage_name = NULL;
         TRY(get_string(c, d, &dp, "file", true, &file));
         TRY(get_string(c, d, &dp, "grid", false, &gname));
+        TRY(get_string(c, d, &dp, "storage", false, &storage_name));
+        /* Emission and temperature grids are re-embedded over the density's
+         * voxels (embed_grid), which is dense work: they load dense. */
+        lu_grid_storage storage = density ? LU_GRID_STORAGE_SPARSE : LU_GRID_STORAGE_DENSE;
+        if (storage_name && strcmp(storage_name, "dense") == 0) {
+            storage = LU_GRID_STORAGE_DENSE;
+        } else if (storage_name && (strcmp(storage_name, "sparse") != 0 || !density)) {
+            jpath sp = jp_key(&dp, "storage");
+            return scene_fail(c, &sp, LU_ERR_SCENE, "%s", density ? "expected \"sparse\" or \"dense\""
+                                                                  : "an emission or temperature grid is always dense");
+        }
         char path[1024];
         lu_path_resolve(c->file, file, path, sizeof path);
         if (!lu_path_has_suffix(path, ".nvdb")) {
@@ -525,7 +536,7 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
                               "\"%s\" is not a .nvdb file (convert OpenVDB with nanovdb_convert; raw grids use \"raw\")",
                               file);
         }
-        return wrap_loader(c, &dp, lu_grid_load_nvdb(path, gname, grid, c->err));
+        return wrap_loader(c, &dp, lu_grid_load_nvdb_as(path, gname, storage, grid, c->err));
     }
     if (cJSON_HasObjectItem(d, "raw")) {
         static const char *const keys[] = {"raw", "dims", "voxel_size", "origin", NULL};
