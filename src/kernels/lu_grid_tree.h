@@ -37,15 +37,64 @@ struct lu_k_tree {
 };
 LU_TYPEDEF(lu_k_tree)
 
+/* The GPU reads trees of at most this many root tiles (each 4096^3 voxels;
+ * a box up to 4096 a side meets at most 8), checked without a loop: Mesa's
+ * llvmpipe ends every loop of an invocation after 65535 iterations in
+ * total (docs/architecture.md §5), and PNanoVDB's root search is a loop run
+ * at every sample that misses the cached nodes. */
+#define LU_TREE_GPU_ROOT_TILES 8
+
+#ifdef LU_GLSL
+#define LU_TREE_ROOT_TRY(i)                                                                                            \
+    if (i < count && pnanovdb_address_is_null(found.address)) {                                                      \
+        pnanovdb_root_tile_handle_t tile = pnanovdb_root_get_tile(PNANOVDB_GRID_TYPE_FLOAT, t.root, i);               \
+        if (pnanovdb_uint64_is_equal(key, pnanovdb_root_tile_get_key(t.buf, tile))) found = tile;                     \
+    }
+/* pnanovdb_root_get_value_address_and_cache with the search unrolled. */
+pnanovdb_address_t lu_tree_root_address(lu_k_tree t, inout pnanovdb_readaccessor_t acc, pnanovdb_coord_t ijk) {
+    const pnanovdb_grid_type_t gt = PNANOVDB_GRID_TYPE_FLOAT;
+    uint count = pnanovdb_root_get_tile_count(t.buf, t.root);
+    pnanovdb_uint64_t key = pnanovdb_coord_to_key(ijk);
+    pnanovdb_root_tile_handle_t found;
+    found.address = pnanovdb_address_null();
+    LU_TREE_ROOT_TRY(0u) LU_TREE_ROOT_TRY(1u) LU_TREE_ROOT_TRY(2u) LU_TREE_ROOT_TRY(3u)
+    LU_TREE_ROOT_TRY(4u) LU_TREE_ROOT_TRY(5u) LU_TREE_ROOT_TRY(6u) LU_TREE_ROOT_TRY(7u)
+    if (pnanovdb_address_is_null(found.address))
+        return pnanovdb_address_offset(t.root.address, PNANOVDB_GRID_TYPE_GET(gt, root_off_background));
+    if (pnanovdb_int64_is_zero(pnanovdb_root_tile_get_child(t.buf, found)))
+        return pnanovdb_address_offset(found.address, PNANOVDB_GRID_TYPE_GET(gt, root_tile_off_value));
+    pnanovdb_upper_handle_t child = pnanovdb_root_get_child(gt, t.buf, t.root, found);
+    acc.upper = child;
+    acc.key = ijk;
+    return pnanovdb_upper_get_value_address_and_cache(gt, t.buf, child, ijk, acc);
+}
+#endif
+
 /* Voxel (x, y, z), 0 outside the index box; acc caches the path to the
- * last leaf, so neighbouring reads skip the root. */
+ * last leaf, so neighbouring reads skip the root. The cascade is PNanoVDB's
+ * pnanovdb_readaccessor_get_value_address; only the GPU's root stage is
+ * lu_tree_root_address. */
 LU_FN float lu_tree_at(lu_k_tree t, PNANOVDB_INOUT(pnanovdb_readaccessor_t) acc, int x, int y, int z) {
     if (x < 0 || y < 0 || z < 0 || x >= t.nx || y >= t.ny || z >= t.nz) return 0.0f;
+    const pnanovdb_grid_type_t gt = PNANOVDB_GRID_TYPE_FLOAT;
     pnanovdb_coord_t ijk;
     ijk.x = t.lo_x + x;
     ijk.y = t.lo_y + y;
     ijk.z = t.lo_z + z;
-    pnanovdb_address_t a = pnanovdb_readaccessor_get_value_address(PNANOVDB_GRID_TYPE_FLOAT, t.buf, acc, PNANOVDB_REF(ijk));
+#ifdef LU_GLSL
+    pnanovdb_address_t a;
+    int dirty = pnanovdb_readaccessor_computedirty(acc, ijk);
+    if (pnanovdb_readaccessor_iscached0(acc, dirty))
+        a = pnanovdb_leaf_get_value_address_and_cache(gt, t.buf, acc.leaf, ijk, acc);
+    else if (pnanovdb_readaccessor_iscached1(acc, dirty))
+        a = pnanovdb_lower_get_value_address_and_cache(gt, t.buf, acc.lower, ijk, acc);
+    else if (pnanovdb_readaccessor_iscached2(acc, dirty))
+        a = pnanovdb_upper_get_value_address_and_cache(gt, t.buf, acc.upper, ijk, acc);
+    else
+        a = lu_tree_root_address(t, acc, ijk);
+#else
+    pnanovdb_address_t a = pnanovdb_readaccessor_get_value_address(gt, t.buf, acc, PNANOVDB_REF(ijk));
+#endif
     return pnanovdb_read_float(t.buf, a);
 }
 

@@ -30,8 +30,10 @@ layout(std430, binding = LU_SCENE_BINDING_HEADER) readonly buffer LuSceneHeader 
 layout(std430, binding = LU_SCENE_BINDING_MEDIA) readonly buffer LuSceneMedia { vec4 lu_scene_media[]; };
 layout(std430, binding = LU_SCENE_BINDING_LIGHTS) readonly buffer LuSceneLights { vec4 lu_scene_lights[]; };
 layout(binding = LU_SCENE_UNIT_GRID0) uniform sampler3D lu_scene_grid[LU_SCENE_MAX_MEDIA];
+#ifdef LU_SCENE_TREES
 #define pnanovdb_buf_data lu_scene_words
 #include "lu_grid_tree.h"
+#endif
 
 vec4 lu_scene_header(int i) {
     return uintBitsToFloat(uvec4(lu_scene_words[4 * i], lu_scene_words[4 * i + 1], lu_scene_words[4 * i + 2],
@@ -90,6 +92,7 @@ lu_k_light lu_k_light_get(LU_CTX_PARAM, int l) { return lu_scene_light(l); }
 float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index) {
     vec4 s = lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + LU_SCENE_MEDIUM_DENSITY_VEC4];
     if (lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + LU_SCENE_MEDIUM_CONSTANT_VEC4].w != 0.0f) return s.w;
+#ifdef LU_SCENE_TREES
     int tw = LU_SCENE_TREE_TABLE + LU_SCENE_TREE_WORDS * medium;
     if (lu_scene_words[tw + 7] != 0u) {
         lu_k_tree t;
@@ -103,6 +106,7 @@ float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index) {
         t.nz = int(lu_scene_words[tw + 6]);
         return lu_tree_sample(t, p_index) * s.w;
     }
+#endif
     float v = 0.0f;
     switch (medium) {
     case 0: v = lu_grid_sample_tex(lu_scene_grid[0], p_index); break;

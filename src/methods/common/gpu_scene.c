@@ -21,6 +21,27 @@ struct lu_gpu_scene {
     size_t lights_bytes;
 };
 
+/* A sparse grid goes to the GPU as a tree only when its dense box would be
+ * larger than this (or than a 3D texture may be): sampling a texture is
+ * far cheaper there, and on llvmpipe a shader that reads trees takes
+ * minutes to compile (docs/volumes.md "Sparse grids"). */
+static uint64_t g_dense_texture_max = 256ull << 20;
+
+void lu_gpu_scene_set_dense_limit(uint64_t bytes) { g_dense_texture_max = bytes; }
+
+static bool medium_uses_tree(const lu_medium *m) {
+    if (m->kind != LU_DENSITY_GRID || !lu_grid_is_sparse(&m->grid)) return false;
+    const lu_grid *g = &m->grid;
+    uint64_t dense = (uint64_t)g->nx * (uint64_t)g->ny * (uint64_t)g->nz * sizeof(float);
+    return dense > g_dense_texture_max || g->nx > 2048 || g->ny > 2048 || g->nz > 2048;
+}
+
+const char *lu_gpu_scene_defines(const lu_scene *scene) {
+    for (int m = 0; m < scene->medium_count; m++)
+        if (medium_uses_tree(&scene->media[m])) return "#define LU_SCENE_TREES 1\n";
+    return "";
+}
+
 lu_k_medium lu_medium_to_kernel(const lu_medium *m) {
     lu_k_medium k;
     memset(&k, 0, sizeof k);
@@ -179,8 +200,18 @@ static size_t align32(uint64_t n) { return (size_t)((n + 31u) / 32u * 32u); }
 
 static lu_result upload_trees(lu_gpu_scene *gs, const lu_scene *scene, lu_error *err) {
     uint64_t total = LU_SCENE_TREES_BYTE;
-    for (int m = 0; m < scene->medium_count; m++)
-        if (gs->sparse[m]) total += align32(scene->media[m].grid.tree_bytes);
+    for (int m = 0; m < scene->medium_count; m++) {
+        if (!gs->sparse[m]) continue;
+        const lu_grid *g = &scene->media[m].grid;
+        lu_k_tree t = lu_grid_tree_view(g);
+        uint32_t tiles = pnanovdb_root_get_tile_count(t.buf, t.root);
+        if (tiles > LU_TREE_GPU_ROOT_TILES)
+            return lu_fail(err, LU_ERR_LIMIT,
+                           "gpu scene: grid \"%s\" has %u root tiles; the GPU reads at most %d (a box up to 4096 "
+                           "voxels a side, LU_TREE_GPU_ROOT_TILES): render this scene on the CPU",
+                           g->name, tiles, LU_TREE_GPU_ROOT_TILES);
+        total += align32(g->tree_bytes);
+    }
     lu_gpu_info info;
     lu_gpu_info_get(gs->ctx, &info);
     if (total > (uint64_t)info.max_ssbo_size || total > UINT32_MAX)
@@ -239,10 +270,15 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
         gs->grid_dims[m][0] = med->grid.nx;
         gs->grid_dims[m][1] = med->grid.ny;
         gs->grid_dims[m][2] = med->grid.nz;
-        gs->sparse[m] = lu_grid_is_sparse(&med->grid);
-        if (!gs->sparse[m])
-            r = lu_gpu_texture3d_create(ctx, med->grid.nx, med->grid.ny, med->grid.nz, med->grid.data, &gs->grid[m],
-                                        err);
+        gs->sparse[m] = medium_uses_tree(med);
+        if (!gs->sparse[m]) {
+            lu_grid dense = {0};
+            if (lu_grid_is_sparse(&med->grid)) r = lu_grid_densify(&med->grid, &dense, err);
+            if (r == LU_OK)
+                r = lu_gpu_texture3d_create(ctx, med->grid.nx, med->grid.ny, med->grid.nz,
+                                            dense.data ? dense.data : med->grid.data, &gs->grid[m], err);
+            lu_grid_destroy(&dense);
+        }
         if (r == LU_OK) r = lu_majorant_build(&med->grid, LU_SCENE_MAJORANT_BLOCK, &gs->maj[m], err);
         gs->grid_generation[m] = med->grid.generation;
     }
@@ -269,7 +305,7 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_
         bool grid = med->kind == LU_DENSITY_GRID;
         /* A sparse grid may be replaced by another of any size (its tree is
          * uploaded again); a dense one keeps its texture's size. */
-        if (grid && gs->sparse[m] && lu_grid_is_sparse(&med->grid)) continue;
+        if (grid && gs->sparse[m] && medium_uses_tree(med)) continue;
         if ((grid != (gs->grid[m] != NULL)) ||
             (grid && (med->grid.nx != gs->grid_dims[m][0] || med->grid.ny != gs->grid_dims[m][1] ||
                       med->grid.nz != gs->grid_dims[m][2])))
@@ -289,7 +325,10 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_
             continue;
         }
         if (!gs->grid[m] || g->generation == gs->grid_generation[m]) continue;
-        r = lu_gpu_texture3d_upload(gs->grid[m], g->data, err);
+        lu_grid dense = {0};
+        if (lu_grid_is_sparse(g)) r = lu_grid_densify(g, &dense, err);
+        if (r == LU_OK) r = lu_gpu_texture3d_upload(gs->grid[m], dense.data ? dense.data : g->data, err);
+        lu_grid_destroy(&dense);
         /* Same block counts (same dims): the buffer keeps its size. */
         if (r == LU_OK) {
             lu_majorant_destroy(&gs->maj[m]);
