@@ -80,6 +80,9 @@ lu_aabb lu_grid_index_support(const lu_grid *g);
 lu_result lu_grid_densify(const lu_grid *src, lu_grid *dst, lu_error *err);
 /* Bytes of voxel storage the grid holds (dense array or tree buffer). */
 uint64_t lu_grid_storage_bytes(const lu_grid *g);
+/* Active voxels: the tree's count (tiles included) for a sparse grid, the
+ * voxels above 0 for a dense one. */
+uint64_t lu_grid_active_voxels(const lu_grid *g);
 
 /* ---- edits --------------------------------------------------------------
  * Density changes after loading go through these calls, which keep
@@ -141,7 +144,8 @@ lu_result lu_grid_load_nvdb_memory_as(const void *data, size_t size, const char 
 /* Writes a NanoVDB float grid (values equal to 0 become inactive background),
  * fog-volume class, named g->name ("density" if empty), uncompressed, built
  * by NanoVDB's own GridBuilder (constant regions become tiles). Refuses
- * negative or non-finite values and a singular map. Atomic (temp + rename). */
+ * negative or non-finite values and a singular map. Atomic (temp + rename).
+ * A sparse grid is written from its dense expansion (LU_MAX_GRID_VOXELS). */
 lu_result lu_grid_save_nvdb(const lu_grid *g, const char *path, lu_error *err);
 /* Raw little-endian float32, x fastest; the file size must be nx*ny*nz*4.
  * Loading rejects negative (LU_ERR_RANGE) and NaN/inf values with the byte

@@ -88,6 +88,18 @@ uint64_t lu_grid_storage_bytes(const lu_grid *g) {
     return g->tree ? g->tree_bytes : 0;
 }
 
+uint64_t lu_grid_active_voxels(const lu_grid *g) {
+    if (!g->data) {
+        if (!g->tree) return 0;
+        lu_k_tree t = lu_grid_tree_view(g);
+        pnanovdb_grid_handle_t grid = {pnanovdb_address_null()};
+        return pnanovdb_tree_get_voxel_count(t.buf, pnanovdb_grid_get_tree(t.buf, grid));
+    }
+    uint64_t n = 0, count = (uint64_t)g->nx * (uint64_t)g->ny * (uint64_t)g->nz;
+    for (uint64_t i = 0; i < count; i++) n += g->data[i] > 0.0f;
+    return n;
+}
+
 typedef struct densify_ctx {
     const lu_grid *src;
     lu_grid *dst;
