@@ -1,7 +1,9 @@
 /* lucent bench SCENE.json... --methods a,b — per-frame time after warm-up,
  * prepare time, peak memory, and error against the reference of the same
  * scene, all measured in one run (docs/architecture.md §8); parameter sweeps,
- * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c). */
+ * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c).
+ * Over 800 lines: one command whose motions, sweeps, truths and rows share
+ * the row table and its three output formats. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -33,11 +35,18 @@ static void usage(void) {
            "                      orbit: the camera turns 4 deg per step about look_at and up;\n"
            "                      light: the first non-environment light turns 4 deg per step\n"
            "                      about the same axis; medium: a Gaussian blob of density added\n"
-           "                      to the first grid medium moves one voxel along x per step.\n"
+           "                      to the first grid medium moves one voxel along x per step;\n"
+           "                      in a scene whose media follow time (sequences, an animated\n"
+           "                      plume) the scene's time advances one frame (1/fps) instead.\n"
            "                      Warm-up frames render step 0; one renderer renders them all\n"
            "  --reference FILE    use this image as the truth instead of rendering it (one scene,\n"
            "                      still only)\n"
            "  --no-truth          render no truth: timings only, the error columns stay empty\n"
+           "  --time T            put each scene at time T seconds first (media that follow time)\n"
+           "  --stability         with a motion: render the truth at every timed state and\n"
+           "                      report each row's flicker: the mean absolute difference of\n"
+           "                      consecutive frames over the truth's own (1: no flicker of\n"
+           "                      its own)\n"
            "  --tracking on|off|both  off: every frame rebuilds everything (what a frame costs\n"
            "                      without change tracking); both: each row twice, the second with\n"
            "                      params \"tracking=off\" (default on)\n"
@@ -76,6 +85,8 @@ typedef struct motion_state {
     float sigma, amplitude;
     int radius, cy, cz, cx0, step; /* blob: centre (blob_x(step), cy, cz) in voxels */
     bool blob_on;
+    bool timed;           /* MOTION_MEDIUM in a scene that follows time: step k is time0 + k / fps */
+    double time0;
 } motion_state;
 
 /* Rotates v by angle a (radians) about the unit axis k (Rodrigues). */
@@ -142,6 +153,7 @@ static lu_result motion_set(motion_state *ms, int k, lu_error *err) {
         return LU_OK;
     }
     case MOTION_MEDIUM: {
+        if (ms->timed) return lu_scene_set_time(s, ms->time0 + lu_scene_frame_time(s, k), err);
         int cx = blob_x(ms, k), lo[3], hi[3];
         blob_box(ms, cx, lo, hi);
         if (ms->blob_on) {
@@ -179,6 +191,10 @@ static lu_result motion_begin(motion_state *ms, motion kind, lu_scene *scene, in
             if (scene->lights[i].type != LU_LIGHT_ENVIRONMENT) ms->light = i;
         if (ms->light < 0) *available = false;
         else ms->light0 = scene->lights[ms->light];
+    } else if (kind == MOTION_MEDIUM && lu_scene_animated(scene)) {
+        /* The scene's own change of density, one frame per step. */
+        ms->timed = true;
+        ms->time0 = scene->time;
     } else if (kind == MOTION_MEDIUM) {
         for (int i = 0; i < scene->medium_count && !ms->grid; i++)
             if (lu_scene_medium_grid(scene, i, &ms->grid, NULL) != LU_OK) ms->grid = NULL;
@@ -214,6 +230,7 @@ static lu_result motion_end(motion_state *ms, lu_error *err) {
     lu_result r = LU_OK;
     ms->scene->camera = ms->camera0;
     if (ms->kind == MOTION_LIGHT && ms->light >= 0) ms->scene->lights[ms->light] = ms->light0;
+    if (ms->kind == MOTION_MEDIUM && ms->timed) r = lu_scene_set_time(ms->scene, ms->time0, err);
     if (ms->kind == MOTION_MEDIUM && ms->grid && ms->blob_on)
         r = lu_grid_set_values(ms->grid, ms->base, (size_t)ms->grid->nx * ms->grid->ny * ms->grid->nz, err);
     free(ms->base);
@@ -347,6 +364,8 @@ typedef struct row {
     bool has_err;
     double rel_l2_first, rel_l2_last, last_vs_first;
     double spp_equiv, load_avg;
+    double update_ms;       /* median time of the scene change before each timed frame (not in frame_ms) */
+    double flicker;         /* --stability: mean |frame k - frame k-1| over the truth's; < 0: not measured */
 } row;
 
 static int cmp_double(const void *a, const void *b) {
@@ -375,12 +394,20 @@ static lu_result image_copy(const lu_image *src, lu_image *dst, lu_error *err) {
     return LU_OK;
 }
 
+/* Mean absolute difference of two images of one size, over pixels and channels. */
+static double mean_abs_diff(const lu_image *a, const lu_image *b) {
+    size_t n = (size_t)a->width * a->height * 3;
+    double s = 0.0;
+    for (size_t i = 0; i < n; i++) s += fabs((double)a->rgb[i] - b->rgb[i]);
+    return n ? s / (double)n : 0.0;
+}
+
 /* Renders one row: prepare once at step 0, warm-up frames at step 0, timed
  * frame k at step k (1..frames; still: always step 0). Keeps the first and
  * the last timed frame. Leaves the scene at step 0 of the motion. */
 static lu_result bench_one(motion_state *ms, const char *method, lu_backend backend, const lu_kvlist *settings,
                            int warmup, int frames, bool untracked, row *out, lu_image *first, lu_image *last,
-                           lu_error *err) {
+                           double *step_diff, lu_error *err) {
     out->method = method;
     out->backend = backend;
     lu_peak_rss_reset();
@@ -400,13 +427,23 @@ static lu_result bench_one(motion_state *ms, const char *method, lu_backend back
         if (untracked) lu_renderer_invalidate(r, LU_CHANGE_ALL);
         res = lu_renderer_render(r, ms->scene, last, err);
     }
+    lu_image prev = {0};
+    *step_diff = 0.0;
+    double *up_list = calloc((size_t)frames, sizeof *up_list);
+    if (!up_list) res = lu_fail(err, LU_ERR_NOMEM, "out of memory");
     for (int k = 1; k <= frames && res == LU_OK; k++) {
+        double u0 = lu_time_seconds();
         res = motion_set(ms, ms->kind == MOTION_STILL ? 0 : k, err);
+        up_list[k - 1] = 1e3 * (lu_time_seconds() - u0);
         if (untracked) lu_renderer_invalidate(r, LU_CHANGE_ALL);
         if (res == LU_OK) res = lu_renderer_render(r, ms->scene, last, err);
         if (res == LU_OK) ms_list[k - 1] = lu_cli_stats(r).frame_ms;
         if (res == LU_OK && k == 1) res = image_copy(last, first, err);
+        /* the frame-to-frame change, outside the timed render */
+        if (res == LU_OK && k > 1) *step_diff += mean_abs_diff(last, &prev);
+        if (res == LU_OK && k < frames) res = image_copy(last, &prev, err);
     }
+    lu_image_destroy(&prev);
     if (res == LU_OK) res = motion_set(ms, 0, err);
     if (res == LU_OK) {
         qsort(ms_list, (size_t)frames, sizeof *ms_list, cmp_double);
@@ -414,10 +451,13 @@ static lu_result bench_one(motion_state *ms, const char *method, lu_backend back
         out->min_ms = ms_list[0];
         out->max_ms = ms_list[frames - 1];
         out->median_ms = frames % 2 ? ms_list[frames / 2] : 0.5 * (ms_list[frames / 2 - 1] + ms_list[frames / 2]);
+        qsort(up_list, (size_t)frames, sizeof *up_list, cmp_double);
+        out->update_ms = frames % 2 ? up_list[frames / 2] : 0.5 * (up_list[frames / 2 - 1] + up_list[frames / 2]);
         size_t rss1 = lu_peak_rss_bytes();
         out->peak_mb = (double)(rss1 > rss0 ? rss1 : rss0) / (1024.0 * 1024.0);
     }
     free(ms_list);
+    free(up_list);
     lu_renderer_destroy(r);
     return res;
 }
@@ -450,7 +490,9 @@ static void print_table(FILE *f, const row *rows, int n) {
         fprintf(f, "%-7s ", k_motion_names[r->motion]);
         if (r->has_err) fprintf(f, "%12.5f ", r->rel_l2_first);
         else fprintf(f, "%12s ", "-");
-        fprintf(f, "%10.1f  %s%s%s\n", r->spp_equiv, r->scene, r->params[0] ? " " : "", r->params);
+        fprintf(f, "%10.1f  %s%s%s", r->spp_equiv, r->scene, r->params[0] ? " " : "", r->params);
+        if (r->flicker >= 0.0) fprintf(f, "  flicker %.3f", r->flicker);
+        fputc('\n', f);
     }
 }
 
@@ -460,7 +502,7 @@ static bool write_csv(const char *path, const row *rows, int n, double gsps, lu_
     FILE *f = af.fp;
     fprintf(f, "scene,method,backend,prepare_ms,frame_ms_median,frame_ms_min,frame_ms_max,frames,speedup_vs_reference,"
                "peak_mb,rel_l2,rel_l1,rmse,psnr,motion,params,rel_l2_first,rel_l2_last,rel_l2_last_vs_first,spp_equiv,"
-               "yardstick_gsps,load_avg,width,height,threads\n");
+               "yardstick_gsps,load_avg,width,height,threads,flicker,update_ms\n");
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
         fprintf(f, "%s,%s,%s,%.3f,%.3f,%.3f,%.3f,%d,%.4f,%.1f,", r->scene, r->method, lu_backend_name(r->backend),
@@ -473,8 +515,10 @@ static bool write_csv(const char *path, const row *rows, int n, double gsps, lu_
         fprintf(f, "%s,%s,", k_motion_names[r->motion], r->params);
         if (r->has_err) fprintf(f, "%.6g,%.6g,", r->rel_l2_first, r->rel_l2_last);
         else fprintf(f, ",,");
-        fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d\n", r->last_vs_first, r->spp_equiv, gsps, r->load_avg, r->width,
+        fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d,", r->last_vs_first, r->spp_equiv, gsps, r->load_avg, r->width,
                 r->height, lu_thread_count());
+        if (r->flicker >= 0.0) fprintf(f, "%.6g", r->flicker);
+        fprintf(f, ",%.3f\n", r->update_ms);
     }
     return lu_atomic_commit(&af, err) == LU_OK;
 }
@@ -516,6 +560,8 @@ static bool write_json(const char *path, const row *rows, int n, double gsps, do
         if (r->has_err)
             fprintf(f, ", \"rel_l2\": %.6g, \"rel_l1\": %.6g, \"psnr\": %.4f, \"rel_l2_first\": %.6g, \"rel_l2_last\": %.6g",
                     r->err.rel_l2, r->err.rel_l1, psnr_out(r->err.psnr), r->rel_l2_first, r->rel_l2_last);
+        if (r->flicker >= 0.0) fprintf(f, ", \"flicker\": %.6g", r->flicker);
+        fprintf(f, ", \"update_ms\": %.3f", r->update_ms);
         fprintf(f, ", \"rel_l2_last_vs_first\": %.6g, \"spp_equiv\": %.2f, \"yardstick_gsps\": %.4f, \"load_avg\": %.2f}%s\n",
                 r->last_vs_first, r->spp_equiv, gsps, r->load_avg, i + 1 < n ? "," : "");
     }
@@ -547,7 +593,8 @@ typedef struct bench_opts {
     sweep sweeps[MAX_SWEEPS];
     int nsweeps;
     const char *csv, *json, *ref_path, *img_dir;
-    bool no_truth, no_yardstick;
+    bool no_truth, no_yardstick, stability, time_given;
+    double time;
     unsigned tracking;         /* bit 0: rows with change tracking, bit 1: rows without */
 } bench_opts;
 
@@ -607,6 +654,13 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
             o->ref_path = argv[++i];
         } else if (strcmp(a, "--no-truth") == 0) {
             o->no_truth = true;
+        } else if (strcmp(a, "--time") == 0 && has_next) {
+            o->time = strtod(argv[++i], &end);
+            o->time_given = true;
+            if (*end || end == argv[i] || !isfinite(o->time) || fabs(o->time) > 1e6)
+                rc = lu_cli_usage("bench", "--time takes seconds in [-1e6, 1e6] (\"%s\")", argv[i]);
+        } else if (strcmp(a, "--stability") == 0) {
+            o->stability = true;
         } else if (strcmp(a, "--no-yardstick") == 0) {
             o->no_yardstick = true;
         } else if (strcmp(a, "--tracking") == 0 && has_next) {
@@ -667,6 +721,11 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
     rows *= (long)o->nscenes * o->nbackends * nmot;
     if (rows > MAX_ROWS) return lu_cli_usage("bench", "%ld rows requested; at most %d", rows, MAX_ROWS);
     if (o->ref_path && o->no_truth) return lu_cli_usage("bench", "--reference and --no-truth exclude each other");
+    if (o->stability && (o->no_truth || o->ref_path))
+        return lu_cli_usage("bench", "--stability measures against the truth: not with --no-truth or --reference");
+    if (o->stability && nmot == o->motions[MOTION_STILL])
+        return lu_cli_usage("bench", "--stability needs a motion (orbit, light or medium)");
+    if (o->stability && o->frames == 1) return lu_cli_usage("bench", "--stability needs --frames of 2 or more");
     if (o->ref_path && (o->nscenes > 1 || nmot > 1 || !o->motions[MOTION_STILL]))
         return lu_cli_usage("bench", "--reference takes one SCENE and --motion still only");
     for (int i = 0; i < o->nscenes; i++) {
@@ -716,8 +775,25 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     k_motion_names[mo]);
             res = render_truth(&ms, first_step, &o->settings, &truth_first, &truth_first_ms, err);
         }
-        if (res == LU_OK && last_step != first_step && !o->no_truth)
+        /* --stability: the truth of every timed state, for the truth's own frame-to-frame change */
+        double truth_step_diff = 0.0;
+        if (res == LU_OK && o->stability && last_step != first_step) {
+            lu_image prev = {0}, cur = {0};
+            double t_ms;
+            res = image_copy(&truth_first, &prev, err);
+            for (int k = first_step + 1; k < last_step && res == LU_OK; k++) {
+                fprintf(stderr, "lucent bench: %s: the truth of state %d of %d (--stability) ...\n", path, k, last_step);
+                res = render_truth(&ms, k, &o->settings, &cur, &t_ms, err);
+                if (res == LU_OK) truth_step_diff += mean_abs_diff(&cur, &prev);
+                if (res == LU_OK) res = image_copy(&cur, &prev, err);
+            }
+            if (res == LU_OK) res = render_truth(&ms, last_step, &o->settings, &truth_last, &truth_last_ms, err);
+            if (res == LU_OK) truth_step_diff += mean_abs_diff(&truth_last, &prev);
+            lu_image_destroy(&prev);
+            lu_image_destroy(&cur);
+        } else if (res == LU_OK && last_step != first_step && !o->no_truth) {
             res = render_truth(&ms, last_step, &o->settings, &truth_last, &truth_last_ms, err);
+        }
         const lu_image *tlast = last_step != first_step ? &truth_last : &truth_first;
         if (res == LU_OK && o->img_dir && !o->no_truth) {
             char p[1400];
@@ -755,6 +831,7 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     }
                     row *r = &rows[*nrows];
                     memset(r, 0, sizeof *r);
+                    r->flicker = -1.0;
                     r->scene = path;
                     r->width = scene->camera.width;
                     r->height = scene->camera.height;
@@ -783,8 +860,11 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                         fprintf(stderr, "lucent bench: %s: %s on %s, %s%s%s ...\n", path, m->name,
                                 lu_backend_name(o->backends[b]), k_motion_names[mo], r->params[0] ? ", " : "",
                                 r->params);
+                        double step_diff = 0.0;
                         res = bench_one(&ms, m->name, o->backends[b], &settings, is_ref ? 0 : o->warmup,
-                                        is_ref ? 1 : frames, untracked, r, &first, &last, err);
+                                        is_ref ? 1 : frames, untracked, r, &first, &last, &step_diff, err);
+                        if (res == LU_OK && truth_step_diff > 0.0 && r->frames == frames && frames > 1)
+                            r->flicker = step_diff / truth_step_diff;
                     }
                     lu_kv_free(&settings);
                     /* The reference renders one frame: its last state is the first. */
@@ -862,6 +942,11 @@ int lu_cmd_bench(int argc, char **argv) {
         lu_scene scene;
         rc = lu_cli_load_scene("bench", o.scenes[s], o.width, o.height, &scene);
         if (rc != LU_EXIT_OK) break;
+        if (o.time_given && lu_scene_set_time(&scene, o.time, &err) != LU_OK) {
+            rc = lu_cli_error("bench", &err);
+            lu_scene_destroy(&scene);
+            break;
+        }
         if (bench_scene(&o, o.scenes[s], &scene, gsps, rows, &nrows, &err) != LU_OK) rc = lu_cli_error("bench", &err);
         lu_scene_destroy(&scene);
     }

@@ -1,5 +1,6 @@
-/* lucent export-grid SCENE.json [--medium N] -o OUT.nvdb — a scene medium's
+/* lucent export-grid SCENE.json [--medium N] [--time T] -o OUT.nvdb — a scene medium's
  * density grid, as the scene loaded it, written as NanoVDB. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -7,7 +8,7 @@
 #include "cli.h"
 
 static void usage(void) {
-    printf("usage: lucent export-grid SCENE.json [--medium N] -o OUT.nvdb\n"
+    printf("usage: lucent export-grid SCENE.json [--medium N] [--time T] -o OUT.nvdb\n"
            "\n"
            "Writes the density grid of medium N (default 0) of the scene, as the scene\n"
            "loader made it (files, procedural grids and voxelised meshes alike), as a\n"
@@ -18,12 +19,17 @@ static void usage(void) {
            "\n"
            "options:\n"
            "  --medium N          which medium (0-based index into \"media\")\n"
+           "  --time T            the grid at time T seconds (media that follow time: a sequence,\n"
+           "                      an animated plume), so that a loop over frame times bakes a\n"
+           "                      procedural into a numbered sequence\n"
            "  -o, --output FILE   the .nvdb file, written under a temporary name and renamed\n");
 }
 
 int lu_cmd_export_grid(int argc, char **argv) {
     const char *scene_path = NULL, *out = NULL;
     long medium = 0;
+    bool time_given = false;
+    double time = 0.0;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         bool has_next = i + 1 < argc;
@@ -37,6 +43,12 @@ int lu_cmd_export_grid(int argc, char **argv) {
             medium = strtol(argv[++i], &end, 10);
             if (*end || end == argv[i] || medium < 0 || medium > 1000000)
                 return lu_cli_usage("export-grid", "--medium takes an index >= 0");
+        } else if (strcmp(a, "--time") == 0 && has_next) {
+            char *end = NULL;
+            time = strtod(argv[++i], &end);
+            time_given = true;
+            if (*end || end == argv[i] || !isfinite(time) || fabs(time) > 1e6)
+                return lu_cli_usage("export-grid", "--time takes seconds in [-1e6, 1e6]");
         } else if (a[0] == '-') {
             return lu_cli_usage("export-grid", "unknown or incomplete option \"%s\"", a);
         } else if (!scene_path) {
@@ -55,7 +67,9 @@ int lu_cmd_export_grid(int argc, char **argv) {
     int rc = lu_cli_load_scene("export-grid", scene_path, 0, 0, &scene);
     if (rc != LU_EXIT_OK) return rc;
     lu_error err = {0};
-    if (medium >= scene.medium_count) {
+    if (time_given && lu_scene_set_time(&scene, time, &err) != LU_OK) {
+        rc = lu_cli_error("export-grid", &err);
+    } else if (medium >= scene.medium_count) {
         fprintf(stderr, "lucent export-grid: error: %s has %d media; there is no medium %ld\n", scene_path,
                 scene.medium_count, medium);
         rc = LU_EXIT_FAIL;

@@ -10,8 +10,10 @@ static void usage(void) {
     printf("usage: lucent info FILE\n"
            "       lucent info --gpu [--software|--hardware]\n"
            "\n"
-           "FILE is a scene (.json), a mesh (.obj, .ply, .ply.gz), a NanoVDB grid (.nvdb)\n"
-           "or an image (.png, .exr, .pfm). Prints counts, bounds, value ranges and voxel sizes.\n"
+           "FILE is a scene (.json), a mesh (.obj, .ply, .ply.gz), a NanoVDB grid (.nvdb), an\n"
+           "OpenVDB grid (.vdb: its first float grid, read by the converter lucent-vdb-convert;\n"
+           "LUCENT_VDB_CONVERTER=PATH names another) or an image (.png, .exr, .pfm). Prints\n"
+           "counts, bounds, value ranges and voxel sizes.\n"
            "--gpu makes the GPU backend's OpenGL 4.5 context (headless EGL: hardware devices\n"
            "first, then Mesa's software device, then the surfaceless platform; --software or\n"
            "--hardware insists on one kind) and prints vendor, renderer, version, the EGL\n"
@@ -74,6 +76,12 @@ static void print_scene(const lu_scene *s) {
             printf(" %s [%.4g, %.4g, %.4g]\n", l->type == LU_LIGHT_DIRECTIONAL ? "irradiance" : "intensity",
                    l->intensity.x, l->intensity.y, l->intensity.z);
     }
+    if (lu_scene_animated(s)) {
+        int f0, f1;
+        printf("time      %.6g s at %.6g fps (frame %d)", s->time, s->fps > 0 ? s->fps : 24.0, lu_scene_frame_at(s, s->time));
+        if (lu_scene_frame_range(s, &f0, &f1)) printf(", sequences over frames %d-%d", f0, f1);
+        printf("\n");
+    }
     printf("media     %d\n", s->medium_count);
     for (int i = 0; i < s->medium_count; i++) {
         const lu_medium *m = &s->media[i];
@@ -82,6 +90,9 @@ static void print_scene(const lu_scene *s) {
                m->from_object >= 0 ? " (translucent object)" : "");
         if (m->kind == LU_DENSITY_GRID) print_grid("      ", &m->grid, &m->index_to_world);
         else printf("      density   constant %.4g\n", m->constant);
+        if (m->density_anim || m->emission_anim)
+            printf("      follows   the time (%s%s%s)\n", m->density_anim ? "density" : "",
+                   m->density_anim && m->emission_anim ? ", " : "", m->emission_anim ? "emission" : "");
         if (m->has_boundary) {
             printf("      boundary  eta %.3g, %u triangles\n", m->eta, m->boundary.triangle_count);
         }
@@ -183,9 +194,10 @@ int lu_cmd_info(int argc, char **argv) {
         if (lu_mesh_load(path, &m, &err) != LU_OK) return lu_cli_error("info", &err);
         print_mesh("", &m);
         lu_mesh_destroy(&m);
-    } else if (strcmp(ext, "nvdb") == 0) {
+    } else if (strcmp(ext, "nvdb") == 0 || strcmp(ext, "vdb") == 0) {
         lu_grid g = {0};
-        if (lu_grid_load_nvdb(path, NULL, &g, &err) != LU_OK) return lu_cli_error("info", &err);
+        lu_result r = ext[0] == 'v' ? lu_grid_load_vdb(path, NULL, &g, &err) : lu_grid_load_nvdb(path, NULL, &g, &err);
+        if (r != LU_OK) return lu_cli_error("info", &err);
         print_grid("", &g, &g.index_to_world);
         lu_grid_destroy(&g);
     } else if (lu_image_format_from_path(path) != LU_IMAGE_AUTO) {

@@ -10,7 +10,10 @@
  * frames so that a frame fits the budget, and upsampled bilinearly to the
  * window; when input stops the scale doubles frame by frame back to 1, and
  * that last frame is the method's full image, as `lucent render` gives it.
- * --script orbit|light --frames N --stats FILE.csv plays a scripted
+ * A scene whose media follow time (sequences, an animated plume) plays in
+ * real time (Space), steps a frame at a time (, and .) and shows its time
+ * and frame in the overlay.
+ * --script orbit|light|play --frames N --stats FILE.csv plays a scripted
  * interaction and records every frame (ms, scale, rel-L2 of the frames that
  * show the final view against a fresh renderer's full image of it).
  *
@@ -18,7 +21,9 @@
  * headless EGL context), tone mapped exactly as `lucent render -o x.png`
  * does (sRGB curve after 2^exposure), overlaid, and drawn with glDrawPixels
  * into the window's own context; the screenshot is read back from the
- * window (glReadPixels), so it shows what the window showed. */
+ * window (glReadPixels), so it shows what the window showed.
+ * Over 800 lines: one interactive loop and the state it drives (the budget,
+ * refinement, the overlay, the live error, scripts, --stats, time). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -54,9 +59,11 @@ static void usage(void) {
            "                      (with --script: after the settle)\n"
            "  --frames N          frames to render with --screenshot (default 1), or the\n"
            "                      scripted frames with --script (default 8)\n"
-           "  --script orbit|light  play a scripted interaction and exit: each frame the camera\n"
-           "                      (orbit) or the first light (light) turns 4 degrees about the\n"
-           "                      camera's up axis through its look-at point; after the N\n"
+           "  --time T            start at time T seconds (default: the scene's \"time\")\n"
+           "  --script orbit|light|play  play a scripted interaction and exit: each frame the\n"
+           "                      camera (orbit) or the first light (light) turns 4 degrees\n"
+           "                      about the camera's up axis through its look-at point, or the\n"
+           "                      scene's time advances one frame, 1/fps (play); after the N\n"
            "                      frames it renders with no input until the full image is\n"
            "                      shown (at most 60 s), then prints a summary line\n"
            "  --stats FILE.csv    one row per frame: frame,ms,scale,rel_l2 (frame 0: the start\n"
@@ -78,6 +85,9 @@ static void usage(void) {
            "                      or a light changes)\n"
            "  H                   show / hide the overlay\n"
            "  R                   reset camera and lights\n"
+           "  Space               play / pause the scene's time (media that follow time:\n"
+           "                      sequences, an animated plume), in real time\n"
+           "  , / .               one frame (1/fps) back / forward; Home: the start time\n"
            "  Esc, Q              quit\n"
            "\n"
            "Monte Carlo methods (pathtrace) accumulate one pass per frame while nothing\n"
@@ -182,6 +192,11 @@ typedef struct viewer {
     lu_camera ref_cam;
     lu_light *ref_lights;
     double rel_l2;             /* of the shown image against ref; < 0: none or stale */
+    /* time: media that follow it */
+    bool animated, playing;
+    double time0;              /* the start time, for Home */
+    double play_clock;         /* glfwGetTime() of the last advance while playing */
+    double ref_time;           /* the time the reference was rendered at */
     /* --stats */
     stats_row *rows;
     int row_count, row_cap;
@@ -468,7 +483,7 @@ static void tone_rows(void *ctx, int64_t y0, int64_t y1, int thread) {
 
 /* True when the cached reference was rendered for the current view and lights. */
 static bool ref_current(const viewer *v) {
-    return v->ref.rgb && memcmp(&v->ref_cam, &v->scene.camera, sizeof v->ref_cam) == 0 &&
+    return v->ref.rgb && v->ref_time == v->scene.time && memcmp(&v->ref_cam, &v->scene.camera, sizeof v->ref_cam) == 0 &&
            memcmp(v->ref_lights, v->scene.lights, (size_t)v->scene.light_count * sizeof *v->ref_lights) == 0;
 }
 
@@ -489,6 +504,7 @@ static bool render_reference(viewer *v) {
         return false;
     }
     v->ref_cam = v->scene.camera;
+    v->ref_time = v->scene.time;
     memcpy(v->ref_lights, v->scene.lights, (size_t)v->scene.light_count * sizeof *v->ref_lights);
     return true;
 }
@@ -507,7 +523,8 @@ static void compose(viewer *v) {
     lu_parallel_for(h, 16, tone_rows, &job, NULL);
     if (!v->overlay) return;
     int scale;
-    char lines[5][160];
+    char lines[6][160];
+    int nl = v->animated ? 6 : 5;
     const lu_method *m = current_method(v);
     snprintf(lines[0], sizeof lines[0], "%s on %s", m->name, lu_backend_name(backend_for(v)));
     char err_text[48] = "";
@@ -526,8 +543,15 @@ static void compose(viewer *v) {
              v->scene.light_count ? v->light + 1 : 0, v->scene.light_count, l ? kinds[l->type] : "-", v->img.width,
              v->img.height, v->scale, v->quality == Q_MOVING ? " moving quality" : "", v->budget_ms);
     snprintf(lines[4], sizeof lines[4], "%.159s", v->status[0] ? v->status : "tab method  +/- quality  arrows light  h hide");
+    if (v->animated) {
+        int f0, f1;
+        char range[48] = "";
+        if (lu_scene_frame_range(&v->scene, &f0, &f1)) snprintf(range, sizeof range, " of %d-%d", f0, f1);
+        snprintf(lines[5], sizeof lines[5], "time %.3f s  frame %d%s  %s  space play  , . step", v->scene.time,
+                 lu_scene_frame_at(&v->scene, v->scene.time), range, v->playing ? "playing" : "paused");
+    }
     int bw = 0;
-    for (int i = 0; i < 5; i++) {
+    for (int i = 0; i < nl; i++) {
         int tw = lu_font_text_width(lines[i], 1);
         if (tw > bw) bw = tw;
     }
@@ -535,9 +559,9 @@ static void compose(viewer *v) {
     scale = 2 * bw + 12 <= w ? 2 : 1;
     bw *= scale;
     int lh = (LU_FONT_H + 3) * scale;
-    lu_font_backdrop(v->rgb, w, h, 0, 0, bw + 6 * scale, 5 * lh + 4 * scale);
+    lu_font_backdrop(v->rgb, w, h, 0, 0, bw + 6 * scale, nl * lh + 4 * scale);
     static const uint8_t white[3] = {235, 235, 235}, amber[3] = {255, 190, 60}, red[3] = {255, 90, 80};
-    for (int i = 0; i < 5; i++)
+    for (int i = 0; i < nl; i++)
         lu_font_draw(v->rgb, w, h, 3 * scale, 3 * scale + i * lh, lines[i], scale,
                      i == 0 ? amber : (i == 4 && v->status[0]) ? red : white);
 }
@@ -625,6 +649,29 @@ static void scale_knob(viewer *v, double f) {
     }
 }
 
+/* Puts the scene at `time`; a change of what the media hold is a change of
+ * the view (the frame budget reacts to it as to any input). */
+static void set_time(viewer *v, double time) {
+    uint64_t before = 0, after = 0;
+    for (int m = 0; m < v->scene.medium_count; m++)
+        before += v->scene.media[m].grid.generation + v->scene.media[m].emission_grid.generation;
+    lu_error err;
+    if (lu_scene_set_time(&v->scene, time, &err) != LU_OK) {
+        snprintf(v->status, sizeof v->status, "%.200s", err.message);
+        v->playing = false;
+        return;
+    }
+    for (int m = 0; m < v->scene.medium_count; m++)
+        after += v->scene.media[m].grid.generation + v->scene.media[m].emission_grid.generation;
+    if (after != before) reset_accumulation(v);
+}
+
+static void step_frame(viewer *v, int by) {
+    if (!v->animated) return;
+    v->playing = false;
+    set_time(v, lu_scene_frame_time(&v->scene, lu_scene_frame_at(&v->scene, v->scene.time) + by));
+}
+
 static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods) {
     (void)scancode;
     viewer *v = g_v;
@@ -660,6 +707,17 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
     case GLFW_KEY_C:
         /* blocking: the reference takes seconds on a large image */
         if (render_reference(v)) update_error(v);
+        break;
+    case GLFW_KEY_SPACE:
+        if (v->animated) {
+            v->playing = !v->playing;
+            v->play_clock = glfwGetTime();
+        }
+        break;
+    case GLFW_KEY_PERIOD: step_frame(v, 1); break;
+    case GLFW_KEY_COMMA: step_frame(v, -1); break;
+    case GLFW_KEY_HOME:
+        if (v->animated) set_time(v, v->time0);
         break;
     case GLFW_KEY_R:
         v->scene.camera = v->cam0;
@@ -855,6 +913,8 @@ static void script_summary(const viewer *v, lu_view_script kind, int frames) {
 
 int lu_cmd_view(int argc, char **argv) {
     const char *scene_path = NULL, *method = "raymarch", *shot = NULL, *stats_path = NULL;
+    bool time_given = false;
+    double start_time = 0.0;
     int width = 0, height = 0, frames = -1, rc = LU_EXIT_OK;
     bool compare = false, moving_defaults = true;
     lu_kvlist moving_extra = {0};
@@ -901,7 +961,13 @@ int lu_cmd_view(int argc, char **argv) {
             shot = argv[++i];
         } else if (strcmp(a, "--script") == 0 && has_next) {
             if (!lu_view_script_parse(argv[++i], &script))
-                rc = lu_cli_usage("view", "--script takes orbit or light (\"%s\")", argv[i]);
+                rc = lu_cli_usage("view", "--script takes orbit, light or play (\"%s\")", argv[i]);
+        } else if (strcmp(a, "--time") == 0 && has_next) {
+            char *end;
+            start_time = strtod(argv[++i], &end);
+            time_given = true;
+            if (*end || end == argv[i] || !isfinite(start_time) || fabs(start_time) > 1e6)
+                rc = lu_cli_usage("view", "--time takes seconds in [-1e6, 1e6] (\"%s\")", argv[i]);
         } else if (strcmp(a, "--stats") == 0 && has_next) {
             stats_path = argv[++i];
         } else if (strcmp(a, "--frames") == 0 && has_next) {
@@ -964,14 +1030,18 @@ int lu_cmd_view(int argc, char **argv) {
         return rc;
     }
     char why[200];
-    if (!lu_view_script_check(&v.scene, script, why, sizeof why)) {
-        rc = lu_cli_usage("view", "--script light: %s (%s)", why, scene_path);
+    if (time_given && lu_scene_set_time(&v.scene, start_time, &err) != LU_OK) rc = lu_cli_error("view", &err);
+    if (rc == LU_EXIT_OK && !lu_view_script_check(&v.scene, script, why, sizeof why))
+        rc = lu_cli_usage("view", "--script %s: %s (%s)", lu_view_script_name(script), why, scene_path);
+    if (rc != LU_EXIT_OK) {
         lu_scene_destroy(&v.scene);
         lu_kv_free(&v.settings);
         lu_kv_free(&v.moving_settings);
         return rc;
     }
     v.cam0 = v.scene.camera;
+    v.animated = lu_scene_animated(&v.scene);
+    v.time0 = v.scene.time;
     int w = v.scene.camera.width, h = v.scene.camera.height;
     v.width = w;
     v.height = h;
@@ -1029,9 +1099,21 @@ int lu_cmd_view(int argc, char **argv) {
     while (!glfwWindowShouldClose(win)) {
         double t0 = glfwGetTime();
         bool scripted_step = script && script_frame < frames && shown_frames > 0;
+        if (v.playing && !script) {
+            /* real time: the clock advances by the wall time since the last frame */
+            set_time(&v, v.scene.time + (t0 - v.play_clock));
+            v.play_clock = t0;
+        }
         if (scripted_step) {
             script_frame++;
             lu_view_script_apply(&v.scene, &v.cam0, v.scene.light_count ? &v.lights0[0] : NULL, script, script_frame);
+            if (script == LU_VIEW_SCRIPT_PLAY) {
+                lu_result tr = lu_scene_set_time(&v.scene, v.time0 + lu_scene_frame_time(&v.scene, script_frame), &err);
+                if (tr != LU_OK) {
+                    rc = lu_cli_error("view", &err);
+                    break;
+                }
+            }
             reset_accumulation(&v);
             if (script_frame == frames) script_end = t0;
         }
@@ -1100,7 +1182,7 @@ int lu_cmd_view(int argc, char **argv) {
             shown_frames++;
         }
         if (last_shot) break;
-        if (script || render_now) glfwPollEvents();
+        if (script || render_now || v.playing) glfwPollEvents();
         else if ((v.scale < 1.0 || v.quality != Q_FULL) && !v.dragging && !v.dragging_light && !v.status[0])
             /* wake when the grace time ends, to refine */
             glfwWaitEventsTimeout(fmax(0.001, LU_VIEW_GRACE_S - (glfwGetTime() - v.last_input)));

@@ -50,6 +50,10 @@ int lu_cli_host_from_env(void) {
         host.gpu_device_only = true;
         host.gpu_device = (int)v;
     }
+    /* The program .vdb input runs (lu_host.vdb_converter); unset: the
+     * library's search beside this executable and in libexec/lucent. */
+    const char *conv = getenv("LUCENT_VDB_CONVERTER");
+    if (conv && *conv) host.vdb_converter = conv;
     if (lu_host_set(&host, &err) != LU_OK) {
         fprintf(stderr, "lucent: error: %s\n", err.message);
         return LU_EXIT_USAGE;

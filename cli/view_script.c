@@ -8,15 +8,22 @@
 bool lu_view_script_parse(const char *s, lu_view_script *out) {
     if (strcmp(s, "orbit") == 0) *out = LU_VIEW_SCRIPT_ORBIT;
     else if (strcmp(s, "light") == 0) *out = LU_VIEW_SCRIPT_LIGHT;
+    else if (strcmp(s, "play") == 0) *out = LU_VIEW_SCRIPT_PLAY;
     else return false;
     return true;
 }
 
 const char *lu_view_script_name(lu_view_script kind) {
-    return kind == LU_VIEW_SCRIPT_ORBIT ? "orbit" : kind == LU_VIEW_SCRIPT_LIGHT ? "light" : "none";
+    return kind == LU_VIEW_SCRIPT_ORBIT ? "orbit" : kind == LU_VIEW_SCRIPT_LIGHT ? "light"
+                                      : kind == LU_VIEW_SCRIPT_PLAY  ? "play"
+                                                                     : "none";
 }
 
 bool lu_view_script_check(const lu_scene *scene, lu_view_script kind, char *why, size_t why_size) {
+    if (kind == LU_VIEW_SCRIPT_PLAY && !lu_scene_animated(scene)) {
+        snprintf(why, why_size, "nothing in the scene follows time (no sequence, no animated procedural)");
+        return false;
+    }
     if (kind != LU_VIEW_SCRIPT_LIGHT) return true;
     if (scene->light_count == 0) {
         snprintf(why, why_size, "the scene has no light to orbit");

@@ -12,13 +12,16 @@ typedef enum lu_view_script {
     LU_VIEW_SCRIPT_NONE = 0,
     LU_VIEW_SCRIPT_ORBIT,   /* the camera orbits its look_at about its up axis */
     LU_VIEW_SCRIPT_LIGHT,   /* the first light orbits the camera's look_at about the camera's up axis */
+    LU_VIEW_SCRIPT_PLAY,    /* the scene's time advances one frame (1 / fps) per frame; the viewer sets it
+                             * (lu_scene_set_time may fail), lu_view_script_apply leaves the scene alone */
 } lu_view_script;
 
-/* "orbit" / "light"; false for anything else. */
+/* "orbit" / "light" / "play"; false for anything else. */
 bool lu_view_script_parse(const char *s, lu_view_script *out);
 const char *lu_view_script_name(lu_view_script kind);
 /* Whether the scene can run the script; false with the reason when the light
- * script finds no first light to turn (none, or an environment light). */
+ * script finds no first light to turn (none, or an environment light), or
+ * the play script nothing that follows time. */
 bool lu_view_script_check(const lu_scene *scene, lu_view_script kind, char *why, size_t why_size);
 /* Frame `frame` of the script: from the start state (camera0, and light0, the
  * first light as loaded; NULL when there is none), the camera (orbit) or

@@ -9,6 +9,7 @@ PACKAGES=(
   build-essential cmake pkg-config
   libembree-dev libnanovdb-dev libnanovdb-tools libopenvdb-tools libopenexr-dev libpng-dev zlib1g-dev
   libcjson-dev libfftw3-dev
+  libopenvdb-dev libboost-dev
   libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libepoxy-dev libglfw3-dev xvfb xauth
   nodejs npm gnuplot-nox
   glmark2-data

@@ -60,8 +60,10 @@ static void test_strict_errors(void) {
                  LU_ERR_SCENE, "no_such_generator", NULL);
     expect_error("{" CAMERA ", \"media\": [{\"density\": {\"file\": \"missing.nvdb\"}, \"sigma_s\": 1}]}", LU_ERR_IO,
                  "$.media[0].density", "missing.nvdb");
-    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"file\": \"x.vdb\"}, \"sigma_s\": 1}]}", LU_ERR_UNSUPPORTED,
-                 "nanovdb_convert", NULL);
+    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"file\": \"missing.vdb\"}, \"sigma_s\": 1}]}", LU_ERR_IO,
+                 "$.media[0].density", "missing.vdb");
+    expect_error("{" CAMERA ", \"media\": [{\"density\": {\"file\": \"x.grid\"}, \"sigma_s\": 1}]}", LU_ERR_UNSUPPORTED,
+                 "$.media[0].density.file", "neither a .nvdb nor a .vdb");
     expect_error("{" CAMERA ", \"objects\": [{\"mesh\": \"missing.ply\"}]}", LU_ERR_IO, "$.objects[0].mesh",
                  "missing.ply");
     expect_error("{" CAMERA ", \"objects\": [{\"mesh\": {\"procedural\": \"box\"}, \"material\": {\"type\": \"metal\"}}]}",

@@ -123,7 +123,8 @@ lu_result lu_kv_check_known(const lu_kvlist *list, const char *const *known, con
  * with lu_host_set before any other lu_ call (a zero-initialised lu_host is
  * the default everywhere). The library reads no environment variable: the
  * CLI reads LUCENT_THREADS, LUCENT_CACHE_DIR (else XDG), LUCENT_QUIET,
- * LUCENT_GPU, LUCENT_GPU_DEVICE and LUCENT_DEBUG and passes them in here.
+ * LUCENT_GPU, LUCENT_GPU_DEVICE, LUCENT_DEBUG and LUCENT_VDB_CONVERTER and
+ * passes them in here.
  *
  * Memory: every allocation of the library itself goes through alloc /
  * realloc / free (all three or none; NULL: the C library's). Memory an lu_
@@ -161,6 +162,9 @@ typedef struct lu_host {
     lu_gpu_choice gpu;
     bool gpu_device_only;       /* use only EGL device gpu_device (as `lucent info --gpu` lists them) */
     int gpu_device;
+    /* The OpenVDB converter that .vdb input runs (lu_grid_load_vdb); NULL:
+     * beside the executable, then the install's libexec/lucent (copied). */
+    const char *vdb_converter;
     void *user;                 /* passed to alloc, realloc, free and log */
 } lu_host;
 

@@ -1,4 +1,4 @@
-/* lucent/grid.h — float density grids: NanoVDB, raw, procedural; dense or sparse.
+/* lucent/grid.h — float density grids: NanoVDB, OpenVDB, raw, procedural; dense or sparse.
  *
  * Conventions (docs/architecture.md §7): voxel centres sit at integer index coordinates;
  * density between centres is trilinear; values outside [0, n-1] are 0, so the
@@ -141,6 +141,23 @@ lu_result lu_grid_load_nvdb_as(const char *path, const char *grid_name, lu_grid_
                                lu_error *err);
 lu_result lu_grid_load_nvdb_memory_as(const void *data, size_t size, const char *label, const char *grid_name,
                                       lu_grid_storage storage, lu_grid *g, lu_error *err);
+/* OpenVDB (.vdb): the float grid named grid_name (NULL or "" = the first
+ * float grid) with its transform, converted to NanoVDB and then read exactly
+ * as lu_grid_load_nvdb reads a file, with the same checks and results.
+ * OpenVDB's reader is not hardened against malformed files, so it runs in a
+ * child process, the converter lucent-vdb-convert (docs/volumes.md): a
+ * converter that crashes gives LU_ERR_FORMAT naming the file and the signal.
+ * Further failures, each naming the file: a missing file -> LU_ERR_IO; no
+ * converter -> LU_ERR_UNSUPPORTED; a name not in the file ->
+ * LU_ERR_INVALID_ARG (listing the grids); a grid of another value type, a
+ * non-linear (frustum) transform, a grid without active voxels or no float
+ * grid at all -> LU_ERR_UNSUPPORTED; a file OpenVDB cannot read ->
+ * LU_ERR_FORMAT with OpenVDB's reason. Safe to call from several threads. */
+lu_result lu_grid_load_vdb(const char *path, const char *grid_name, lu_grid *g, lu_error *err);
+/* Where lu_grid_load_vdb finds its converter (lu_host.vdb_converter, else
+ * beside the running executable, else the install's libexec/lucent), or
+ * LU_ERR_UNSUPPORTED saying where it looked. */
+lu_result lu_grid_vdb_converter(char *out, size_t cap, lu_error *err);
 /* Writes a NanoVDB float grid (values equal to 0 become inactive background),
  * fog-volume class, named g->name ("density" if empty), uncompressed, built
  * by NanoVDB's own GridBuilder (constant regions become tiles). Refuses
@@ -180,10 +197,18 @@ lu_result lu_grid_save_raw(const lu_grid *g, const char *path, lu_error *err);
  *     each voxel the exact average over its extent;
  *   torus_in_cube: torus around the y axis through `center`, ramped edge;
  *   dusty_room: bottom + (top - bottom) * t(y) + noise * fBm(3 octaves), >= 0;
- *   smoke_plume: widening column from the floor centre, peak density ~1.
+ *   smoke_plume: widening column from the floor centre, peak density ~1;
+ *     rise=0 time=0: with rise > 0 the plume is animated, its fBm
+ *     turbulence carried up the column by rise * time world units (rise in
+ *     world units per second) and the meander of its axis travelling up with
+ *     it; time 0 is the still plume.
  * Unknown names or parameters are errors naming `where`. */
 lu_result lu_grid_procedural(const char *name, const lu_kvlist *params, lu_grid *g, const char *where,
                              lu_error *err);
+/* Whether the generator's output changes with its "time" parameter
+ * ("smoke_plume" with rise > 0): a scene medium made by it follows the
+ * scene's time (lu_scene_set_time). */
+bool lu_grid_procedural_animated(const char *name, const lu_kvlist *params);
 
 #ifdef __cplusplus
 }

@@ -113,6 +113,10 @@ typedef enum lu_emission_kind {
     LU_EMISSION_BLACKBODY
 } lu_emission_kind;
 
+/* A medium's density or emission over time: a numbered sequence of grid
+ * files or an animated procedural (see "time" below). Opaque; owned by the scene. */
+typedef struct lu_grid_anim lu_grid_anim;
+
 typedef struct lu_medium {
     lu_density_kind kind;
     float constant;             /* LU_DENSITY_CONSTANT: density everywhere inside the boundary */
@@ -132,6 +136,9 @@ typedef struct lu_medium {
     float le_scale;             /* default 1 */
     float temp_scale, temp_offset; /* BLACKBODY; defaults 1, 0 */
     lu_grid emission_grid;      /* GRID: e(x); BLACKBODY: T(x) in Kelvin before the mapping */
+    /* Set when grid / emission_grid follow the scene's time (a sequence or an
+     * animated procedural, loaded from JSON); NULL: still. */
+    lu_grid_anim *density_anim, *emission_anim;
 } lu_medium;
 
 /* Linear sRGB (D65) of the blackbody spectrum at T Kelvin, normalised to
@@ -167,6 +174,8 @@ typedef struct lu_scene {
     int medium_count;
     lu_object *objects;
     int object_count;
+    double time;                /* seconds (lu_scene_set_time changes it) */
+    double fps;                 /* frames per second of sequences; 0: 24 */
 } lu_scene;
 
 lu_result lu_scene_load(const char *path, lu_scene *scene, lu_error *err);
@@ -180,6 +189,30 @@ void lu_scene_destroy(lu_scene *scene);
  * (LU_ERR_INVALID_ARG) and a constant-density medium, translucent objects'
  * media included (LU_ERR_UNSUPPORTED: there is no grid to edit). */
 lu_result lu_scene_medium_grid(lu_scene *scene, int medium, lu_grid **grid, lu_error *err);
+
+/* ---- time -----------------------------------------------------------------
+ * A scene has one clock: `time` in seconds (scene key "time", default 0) and
+ * `fps` (key "fps", default 24). Frame number F starts at time F / fps. A
+ * sequence medium ("file": "smoke_####.nvdb", "frames": [A, B]) shows the
+ * file numbered lu_scene_frame_at(time) = floor(time * fps + 1e-6) (the
+ * 1e-6 keeps time F / fps on frame F despite rounding), holding frame A
+ * before the range and B after it ("extend": "loop" wraps instead); an
+ * animated procedural is evaluated at the time itself. Still media ignore
+ * the time. docs/volumes.md "Time and sequences". */
+
+/* Whether any medium follows the time. */
+bool lu_scene_animated(const lu_scene *scene);
+/* Puts every animated medium at `time` (finite): a sequence loads the file of
+ * its frame (nothing when the frame is the one shown), a procedural is
+ * evaluated again; the values go in through lu_grid_set_values, so
+ * renderers see a density change (a new grid generation) and nothing else.
+ * All or nothing: on failure (a file that fails to load, its message naming
+ * it) the scene and its time are as they were. */
+lu_result lu_scene_set_time(lu_scene *scene, double time, lu_error *err);
+int lu_scene_frame_at(const lu_scene *scene, double time);
+double lu_scene_frame_time(const lu_scene *scene, int frame);   /* frame / fps */
+/* The smallest range holding every sequence's "frames"; false without sequences. */
+bool lu_scene_frame_range(const lu_scene *scene, int *first, int *last);
 
 /* ---- building a scene in code ---------------------------------------------
  * The JSON loader is one user of the builder: every scene, loaded or built,

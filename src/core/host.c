@@ -12,6 +12,7 @@
 #include "core/core_internal.h"
 
 static lu_host g_host;
+static char g_vdb_converter[1024];   /* the host's vdb_converter, copied ("" = search) */
 /* Allocations made through the current allocator and not yet freed: a new
  * allocator is refused while its predecessor's memory is alive. */
 static atomic_llong g_live;
@@ -101,11 +102,16 @@ lu_result lu_host_set(const lu_host *host, lu_error *err) {
         return lu_fail(err, LU_ERR_INVALID_ARG,
                        "host: the allocator cannot change while %lld allocations of the previous one are alive",
                        (long long)atomic_load(&g_live));
+    if (h->vdb_converter && (!*h->vdb_converter || strlen(h->vdb_converter) >= sizeof g_vdb_converter))
+        return lu_fail(err, LU_ERR_INVALID_ARG, "host: vdb_converter must be a path of 1 to %zu bytes",
+                       sizeof g_vdb_converter - 1);
     lu_result r = lu_set_thread_count(h->threads, err);
     if (r == LU_OK) r = lu_set_cache_dir(h->cache_dir, err);
     if (r != LU_OK) return r;
     g_host = *h;
     g_host.cache_dir = NULL;   /* the library's copy lives in the cache module */
+    snprintf(g_vdb_converter, sizeof g_vdb_converter, "%s", h->vdb_converter ? h->vdb_converter : "");
+    g_host.vdb_converter = NULL;
     if (!same_alloc) atomic_store(&g_live, 0);
     return LU_OK;
 }
@@ -114,4 +120,5 @@ void lu_host_get(lu_host *out) {
     *out = g_host;
     out->threads = lu_thread_count();
     out->cache_dir = lu_cache_dir_copy();
+    out->vdb_converter = g_vdb_converter[0] ? g_vdb_converter : NULL;
 }

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "kernels/lu_camera.h"
+#include "scene/scene_time.h"
 
 void lu_scene_destroy(lu_scene *s) {
     for (int i = 0; i < s->light_count; i++) lu_image_destroy(&s->lights[i].env);
@@ -12,6 +13,8 @@ void lu_scene_destroy(lu_scene *s) {
         lu_grid_destroy(&s->media[i].grid);
         lu_grid_destroy(&s->media[i].emission_grid);
         lu_mesh_destroy(&s->media[i].boundary);
+        lu_grid_anim_free(s->media[i].density_anim);
+        lu_grid_anim_free(s->media[i].emission_anim);
     }
     for (int i = 0; i < s->object_count; i++) lu_mesh_destroy(&s->objects[i].mesh);
     lu_free(s->lights);

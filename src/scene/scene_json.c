@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "scene/scene_time.h"
 #include "volume/grid_internal.h"
 
 #define LU_SCENE_MAX_BYTES (16u * 1024u * 1024u)
@@ -20,6 +21,9 @@
 typedef struct parse_ctx {
     const char *file;   /* for messages and relative paths */
     lu_error *err;
+    lu_scene clock;     /* only time and fps: the scene's, for the grids that follow time */
+    lu_grid_anim **anims;   /* 2 per medium of "media" (density, emission), handed to the scene at the end */
+    int anim_count, anim_cap;
 } parse_ctx;
 
 /* JSON paths are built on the stack as the parser descends. */
@@ -488,10 +492,11 @@ static lu_result add_light(parse_ctx *c, const cJSON *o, const jpath *p, lu_scen
     return wrap_loader(c, p, lu_scene_builder_add_light(b, &l, c->err));
 }
 
-/* "density": {"constant": v} | {"file": "x.nvdb", "grid": "density"} |
+/* "density": {"constant": v} | {"file": "x.nvdb" or "x.vdb", "grid": "density"} |
  *            {"raw": "x.raw", "dims": [nx,ny,nz], "voxel_size": h, "origin": [x,y,z]} |
  *            {"procedural": NAME, ...params} */
-static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid);
+static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid,
+                                   lu_grid_anim **anim);
 
 static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p, lu_medium *m) {
     const cJSON *d = cJSON_GetObjectItemCaseSensitive(parent, "density");
@@ -505,14 +510,48 @@ static lu_result parse_density(parse_ctx *c, const cJSON *parent, const jpath *p
         return get_float(c, d, &dp, "constant", 1.0, 0.0, 1e6, true, &m->constant);
     }
     m->kind = LU_DENSITY_GRID;
-    return parse_grid_source(c, d, &dp, true, &m->grid);
+    return parse_grid_source(c, d, &dp, true, &m->grid, &m->density_anim);
 }
 
-/* A grid from one of "file", "raw", "voxelize", "procedural" in object d (at path *pp). */
-static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid) {
+/* "frames": [first, last], "extend": "hold" | "loop" of a sequence. */
+static lu_result parse_frames(parse_ctx *c, const cJSON *d, const jpath *dp, int *first, int *last, bool *loop) {
+    const cJSON *f = cJSON_GetObjectItemCaseSensitive(d, "frames");
+    jpath fp = jp_key(dp, "frames");
+    if (!cJSON_IsArray(f) || cJSON_GetArraySize(f) != 2)
+        return scene_fail(c, &fp, LU_ERR_SCENE, "expected [first, last] (two whole frame numbers)");
+    int v[2];
+    for (int i = 0; i < 2; i++) {
+        const cJSON *e = cJSON_GetArrayItem(f, i);
+        if (!cJSON_IsNumber(e) || !isfinite(e->valuedouble) || e->valuedouble != floor(e->valuedouble))
+            return scene_fail(c, &fp, LU_ERR_SCENE, "element %d is not a whole number", i);
+        if (!(e->valuedouble >= 0 && e->valuedouble <= 1e9))
+            return scene_fail(c, &fp, LU_ERR_RANGE, "element %d = %g is outside [0, 1e9]", i, e->valuedouble);
+        v[i] = (int)e->valuedouble;
+    }
+    if (v[1] < v[0]) return scene_fail(c, &fp, LU_ERR_RANGE, "the last frame %d comes before the first %d", v[1], v[0]);
+    if ((long long)v[1] - v[0] + 1 > LU_SEQUENCE_MAX_FRAMES)
+        return scene_fail(c, &fp, LU_ERR_LIMIT, "%d frames exceed the limit of %d", v[1] - v[0] + 1, LU_SEQUENCE_MAX_FRAMES);
+    const char *extend;
+    TRY(get_string(c, d, dp, "extend", false, &extend));
+    if (extend && strcmp(extend, "hold") != 0 && strcmp(extend, "loop") != 0) {
+        jpath ep = jp_key(dp, "extend");
+        return scene_fail(c, &ep, LU_ERR_SCENE, "unknown \"%s\" (hold, loop)", extend);
+    }
+    *first = v[0];
+    *last = v[1];
+    *loop = extend && strcmp(extend, "loop") == 0;
+    return LU_OK;
+}
+
+/* A grid from one of "file", "raw", "voxelize", "procedural" in object d (at
+ * path *pp); *anim is set when the grid follows time (a sequence, an animated
+ * procedural). */
+static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp, bool density, lu_grid *grid,
+                                   lu_grid_anim **anim) {
     jpath dp = *pp;
+    *anim = NULL;
     if (cJSON_HasObjectItem(d, "file")) {
-        static const char *const keys[] = {"file", "grid", "storage", NULL};
+        static const char *const keys[] = {"file", "grid", "storage", "frames", "extend", NULL};
         TRY(check_object(c, d, &dp, keys));
         const char *file, *gname, *storage_name = NULL;
         TRY(get_string(c, d, &dp, "file", true, &file));
@@ -530,11 +569,37 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
         }
         char path[1024];
         lu_path_resolve(c->file, file, path, sizeof path);
-        if (!lu_path_has_suffix(path, ".nvdb")) {
+        bool vdb = lu_path_has_suffix(path, ".vdb");
+        if (!vdb && !lu_path_has_suffix(path, ".nvdb")) {
             jpath fp = jp_key(&dp, "file");
             return scene_fail(c, &fp, LU_ERR_UNSUPPORTED,
-                              "\"%s\" is not a .nvdb file (convert OpenVDB with nanovdb_convert; raw grids use \"raw\")",
-                              file);
+                              "\"%s\" is neither a .nvdb nor a .vdb file (raw grids use \"raw\")", file);
+        }
+        if (storage_name && cJSON_HasObjectItem(d, "frames")) {
+            jpath sp = jp_key(&dp, "storage");
+            return scene_fail(c, &sp, LU_ERR_SCENE, "a sequence is always dense (its frames are edited in)");
+        }
+        if (cJSON_HasObjectItem(d, "frames")) {
+            int first = 0, last = 0;
+            bool loop = false;
+            TRY(parse_frames(c, d, &dp, &first, &last, &loop));
+            return wrap_loader(c, &dp, lu_grid_anim_sequence(path, gname, first, last, loop,
+                                                             lu_scene_frame_at(&c->clock, c->clock.time), grid, anim,
+                                                             c->err));
+        }
+        if (cJSON_HasObjectItem(d, "extend")) {
+            jpath ep = jp_key(&dp, "extend");
+            return scene_fail(c, &ep, LU_ERR_SCENE, "only meaningful with \"frames\"");
+        }
+        if (vdb) {
+            lu_result r = lu_grid_load_vdb(path, gname, grid, c->err);
+            if (r == LU_OK && storage == LU_GRID_STORAGE_DENSE && lu_grid_is_sparse(grid)) {
+                lu_grid d2;
+                r = lu_grid_densify(grid, &d2, c->err);
+                lu_grid_destroy(grid);
+                if (r == LU_OK) *grid = d2;
+            }
+            return wrap_loader(c, &dp, r);
         }
         return wrap_loader(c, &dp, lu_grid_load_nvdb_as(path, gname, storage, grid, c->err));
     }
@@ -597,10 +662,16 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
         TRY(get_string(c, d, &dp, "procedural", true, &name));
         lu_kvlist params = {0};
         lu_result r = params_from_object(c, d, &dp, "procedural", &params);
+        if (r == LU_OK && lu_kv_find(&params, "time")) {
+            jpath tp = jp_key(&dp, "time");
+            r = scene_fail(c, &tp, LU_ERR_SCENE, "the time is the scene's (its key \"time\", or --time)");
+        }
         if (r == LU_OK) {
             char where[300];
             snprintf(where, sizeof where, "%s: %s", c->file, dp.s);
-            r = lu_grid_procedural(name, &params, grid, where, c->err);
+            r = lu_grid_procedural_animated(name, &params)
+                    ? lu_grid_anim_procedural(name, &params, where, c->clock.time, grid, anim, c->err)
+                    : lu_grid_procedural(name, &params, grid, where, c->err);
         }
         lu_kv_free(&params);
         return r;
@@ -609,46 +680,14 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
                       density ? "\"constant\", " : "");
 }
 
-static bool close_to(float x, float y, float scale) { return fabsf(x - y) <= 1e-5f * fmaxf(scale, fmaxf(fabsf(x), fabsf(y))); }
-
-/* Whether grid e lies in the index space of grid d: the same linear map,
- * and e's voxel 0 at an integer voxel k of d (a NanoVDB grid is loaded
- * over the box of its own active voxels, so two grids of one file share
- * their index space up to such an offset). */
-static bool shared_index_space(const lu_grid *d, const lu_grid *e, int k[3]) {
-    const lu_affine *a = &d->index_to_world, *b = &e->index_to_world;
-    float scale = 0.0f;
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) scale = fmaxf(scale, fabsf(a->m[i][j]));
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            if (!close_to(a->m[i][j], b->m[i][j], scale)) return false;
-    lu_affine inv;
-    if (!lu_affine_invert(a, &inv)) return false;
-    lu_vec3 o = lu_affine_point(&inv, lu_v3(b->m[0][3], b->m[1][3], b->m[2][3]));
-    for (int i = 0; i < 3; i++) {
-        float v = lu_v3_get(o, i), r = roundf(v);
-        if (fabsf(v - r) > 1e-3f) return false;
-        k[i] = (int)r;
-    }
-    return true;
-}
-
-/* e re-embedded over d's voxels: e'(i) = e(i - k), 0 outside e. Values of e
+/* e re-embedded over d's voxels (offset k, lu_grid_embed). Values of e
  * outside d's box are dropped: the density is 0 there, and emission is
  * weighted by density. */
 static lu_result embed_grid(parse_ctx *c, const jpath *p, const lu_grid *d, lu_grid *e, const int k[3]) {
     if (k[0] == 0 && k[1] == 0 && k[2] == 0 && e->nx == d->nx && e->ny == d->ny && e->nz == d->nz) return LU_OK;
     lu_grid g = {0};
-    lu_result r = lu_grid_alloc(&g, d->nx, d->ny, d->nz, c->err);
+    lu_result r = lu_grid_embed(e, k, d->nx, d->ny, d->nz, &d->index_to_world, &g, c->err);
     if (r != LU_OK) return scene_fail(c, p, r, "%s", c->err->message);
-    for (int z = 0; z < d->nz; z++)
-        for (int y = 0; y < d->ny; y++)
-            for (int x = 0; x < d->nx; x++)
-                g.data[((size_t)z * d->ny + y) * d->nx + x] = lu_grid_at(e, x - k[0], y - k[1], z - k[2]);
-    g.index_to_world = d->index_to_world;
-    memcpy(g.name, e->name, sizeof g.name);
-    lu_grid_update_range(&g);
     lu_grid_destroy(e);
     *e = g;
     return LU_OK;
@@ -685,9 +724,9 @@ static lu_result parse_emission(parse_ctx *c, const cJSON *o, const jpath *p, lu
                           "constant emission)");
     if (!cJSON_IsObject(blackbody ? t : g)) return scene_fail(c, &gp, LU_ERR_SCENE, "expected an object");
     m->emission = blackbody ? LU_EMISSION_BLACKBODY : LU_EMISSION_GRID;
-    TRY(parse_grid_source(c, blackbody ? t : g, &gp, false, &m->emission_grid));
+    TRY(parse_grid_source(c, blackbody ? t : g, &gp, false, &m->emission_grid, &m->emission_anim));
     int k[3];
-    if (!shared_index_space(&m->grid, &m->emission_grid, k)) {
+    if (!lu_grid_shared_index_space(&m->grid, &m->emission_grid, k)) {
         const lu_affine *a = &m->grid.index_to_world, *b = &m->emission_grid.index_to_world;
         return scene_fail(c, &gp, LU_ERR_SCENE,
                           "this grid is %dx%dx%d with voxel (%g, %g, %g) at (%g, %g, %g), the density grid %dx%dx%d with "
@@ -733,17 +772,30 @@ static lu_result add_medium(parse_ctx *c, const cJSON *o, const jpath *p, lu_sce
     lu_affine xf;
     bool surface_given = false;
     lu_result r = parse_medium(c, o, p, &m, &xf, &surface_given);
+    if (r == LU_OK && c->anim_count + 2 > c->anim_cap) {
+        int cap = c->anim_cap ? 2 * c->anim_cap : 8;
+        lu_grid_anim **a = lu_realloc(c->anims, (size_t)cap * sizeof *a);
+        if (!a) r = scene_fail(c, p, LU_ERR_NOMEM, "out of memory");
+        else c->anims = a, c->anim_cap = cap;
+    }
     if (r != LU_OK) {
         lu_grid_destroy(&m.grid);
         lu_grid_destroy(&m.emission_grid);
         lu_mesh_destroy(&m.boundary);
+        lu_grid_anim_free(m.density_anim);
+        lu_grid_anim_free(m.emission_anim);
         return r;
     }
     /* A zero colour or scale is no emission (zero means "default" in the desc). */
     if (m.le_scale == 0.0f || (m.le_color.x == 0.0f && m.le_color.y == 0.0f && m.le_color.z == 0.0f)) {
         m.emission = LU_EMISSION_NONE;
         lu_grid_destroy(&m.emission_grid);
+        lu_grid_anim_free(m.emission_anim);
+        m.emission_anim = NULL;
     }
+    /* The scene takes them after lu_scene_builder_finish (parse_root), medium i of "media" being media[i]. */
+    c->anims[c->anim_count++] = m.density_anim;
+    c->anims[c->anim_count++] = m.emission_anim;
     lu_medium_desc d = {.kind = m.kind, .grid = &m.grid, .constant = m.constant, .sigma_s = m.sigma_s,
                         .sigma_a = m.sigma_a, .phase_g = m.phase_g, .transform = &xf,
                         .boundary = m.has_boundary ? &m.boundary : NULL, .eta = m.eta,
@@ -794,12 +846,14 @@ static lu_result parse_list(parse_ctx *c, const cJSON *root, const char *key, lu
 static lu_result parse_root(parse_ctx *c, const cJSON *root, lu_scene *s) {
     jpath rp = {"$"};
     static const char *const keys[] = {"name", "description", "reproduces", "camera", "background",
-                                       "lights", "media", "objects", NULL};
+                                       "lights", "media", "objects", "time", "fps", NULL};
     TRY(check_object(c, root, &rp, keys));
     const char *str;
     TRY(get_string(c, root, &rp, "name", false, &str));
     TRY(get_string(c, root, &rp, "description", false, &str));
     TRY(get_string(c, root, &rp, "reproduces", false, &str));
+    TRY(get_number(c, root, &rp, "time", 0.0, -1e6, 1e6, false, &c->clock.time));
+    TRY(get_number(c, root, &rp, "fps", LU_SCENE_DEFAULT_FPS, 1e-3, 1e6, false, &c->clock.fps));
     lu_scene_builder *b;
     TRY(lu_scene_builder_create(&b, c->err));
     lu_vec3 background;
@@ -813,7 +867,15 @@ static lu_result parse_root(parse_ctx *c, const cJSON *root, lu_scene *s) {
         lu_scene_builder_destroy(b);
         return r;
     }
-    return wrap_loader(c, &rp, lu_scene_builder_finish(b, s, c->err));
+    TRY(wrap_loader(c, &rp, lu_scene_builder_finish(b, s, c->err)));
+    for (int i = 0; i < c->anim_count / 2 && i < s->medium_count; i++) {
+        s->media[i].density_anim = c->anims[2 * i];
+        s->media[i].emission_anim = c->anims[2 * i + 1];
+        c->anims[2 * i] = c->anims[2 * i + 1] = NULL;
+    }
+    s->time = c->clock.time;
+    s->fps = c->clock.fps;
+    return LU_OK;
 }
 
 /* Byte offset -> "line L, column C" for cJSON's syntax errors. */
@@ -833,7 +895,7 @@ static void line_col(const char *text, size_t offset, int *line, int *col) {
 lu_result lu_scene_load_string(const char *json, const char *base_path, lu_scene *scene, lu_error *err) {
     memset(scene, 0, sizeof *scene);
     const char *file = base_path && *base_path ? base_path : "<scene>";
-    parse_ctx c = {file, err};
+    parse_ctx c = {.file = file, .err = err};
     size_t len = strlen(json);
     const char *end = NULL;
     cJSON *root = cJSON_ParseWithLengthOpts(json, len + 1, &end, true); /* length includes the NUL it requires */
@@ -847,6 +909,8 @@ lu_result lu_scene_load_string(const char *json, const char *base_path, lu_scene
     if (!err) c.err = &local;
     lu_result r = parse_root(&c, root, scene);
     cJSON_Delete(root);
+    for (int i = 0; i < c.anim_count; i++) lu_grid_anim_free(c.anims[i]);   /* those the scene did not take */
+    lu_free(c.anims);
     if (r != LU_OK) lu_scene_destroy(scene);
     else snprintf(scene->path, sizeof scene->path, "%s", base_path ? base_path : "");
     return r;

@@ -287,6 +287,45 @@ lu_aabb lu_grid_index_support(const lu_grid *g) {
     return b;
 }
 
+/* ---- index spaces -------------------------------------------------------- */
+
+static bool close_to(float x, float y, float scale) {
+    return fabsf(x - y) <= 1e-5f * fmaxf(scale, fmaxf(fabsf(x), fabsf(y)));
+}
+
+bool lu_grid_shared_index_space(const lu_grid *d, const lu_grid *e, int k[3]) {
+    const lu_affine *a = &d->index_to_world, *b = &e->index_to_world;
+    float scale = 0.0f;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) scale = fmaxf(scale, fabsf(a->m[i][j]));
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (!close_to(a->m[i][j], b->m[i][j], scale)) return false;
+    lu_affine inv;
+    if (!lu_affine_invert(a, &inv)) return false;
+    lu_vec3 o = lu_affine_point(&inv, lu_v3(b->m[0][3], b->m[1][3], b->m[2][3]));
+    for (int i = 0; i < 3; i++) {
+        float v = lu_v3_get(o, i), r = roundf(v);
+        if (fabsf(v - r) > 1e-3f) return false;
+        k[i] = (int)r;
+    }
+    return true;
+}
+
+lu_result lu_grid_embed(const lu_grid *e, const int k[3], int nx, int ny, int nz, const lu_affine *index_to_world,
+                        lu_grid *out, lu_error *err) {
+    lu_result r = lu_grid_alloc(out, nx, ny, nz, err);
+    if (r != LU_OK) return r;
+    for (int z = 0; z < nz; z++)
+        for (int y = 0; y < ny; y++)
+            for (int x = 0; x < nx; x++)
+                out->data[((size_t)z * ny + y) * nx + x] = lu_grid_at(e, x - k[0], y - k[1], z - k[2]);
+    out->index_to_world = *index_to_world;
+    memcpy(out->name, e->name, sizeof out->name);
+    lu_grid_update_range(out);
+    return LU_OK;
+}
+
 /* ---- raw float32 little-endian ------------------------------------------ */
 
 static float le_to_float(const unsigned char *b) {

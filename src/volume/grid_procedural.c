@@ -31,6 +31,7 @@ typedef struct gen {
     double center[3], size[3], lo[3], h[3], hmin;
     /* parameters (meaning depends on kind) */
     double value, radius, r2, low, high, bottom, top, noise, freq, gain, coverage;
+    double rise, time;   /* smoke_plume: advection speed (world units per second) and time */
     int octaves, layers, axis, count;
     uint32_t seed;
     gauss *g;
@@ -59,6 +60,37 @@ static double layer_cdf(const gen *G, double u) {
     double even = floor((k + 1.0) / 2.0), odd = floor(k / 2.0);
     double cur = fmod(k, 2.0) == 0.0 ? G->low : G->high;
     return even * G->low + odd * G->high + (u - k) * (k < G->layers ? cur : 0.0);
+}
+
+/* smoke_plume: a column rising from the floor centre, widening with height,
+ * its axis meandering and its density broken up by fBm. The centreline
+ * density falls as R0/R: the plume thins as it entrains air.
+ * Animated (rise > 0): the flow carries the turbulence up the column by
+ * rise * time, and the meander of the axis travels up with it as a wave
+ * whose shape drifts slowly (its third noise coordinate), so time 0 is the
+ * still plume and every time is a pure function of rise * time.
+ * What depends on the height alone is computed once per row of voxels
+ * (plume_row_at): the same operations, so the same bits, as per voxel. */
+typedef struct plume_row { double s, w, adv, sway, swaz, R, vertical, f; } plume_row;
+
+static void plume_row_at(const gen *G, double y, plume_row *r) {
+    r->s = clamp01((y - G->lo[1]) / G->size[1]);
+    r->w = fmin(G->size[0], G->size[2]);
+    r->adv = G->rise * G->time;
+    double a = r->adv / G->size[1], s = r->s, w = r->w;
+    r->sway = 0.08 * w * lu_fbm3(1.7 * (s - a), 0.0, 0.5 * a, 2, 0.5, G->seed ^ 0x51u);
+    r->swaz = 0.08 * w * lu_fbm3(0.5 * a, 1.7 * (s - a), 0.0, 2, 0.5, G->seed ^ 0xa3u);
+    r->R = w * (0.05 + 0.2 * s);
+    r->vertical = smoothstep(0.0, 0.04, s) * (0.05 / (0.05 + 0.2 * s)) * (1.0 - smoothstep(0.85, 1.0, s));
+    r->f = 4.0 / w;
+}
+
+static double plume_at(const gen *G, const plume_row *r, double x, double y, double z) {
+    double dx = x - G->center[0], dz = z - G->center[2];
+    double ex = dx - r->sway, ez = dz - r->swaz;
+    double radial = exp(-(ex * ex + ez * ez) / (r->R * r->R));
+    double turb = 0.6 + 0.9 * lu_fbm3(x * r->f, (y - G->lo[1] - r->adv) * r->f - 0.7, z * r->f, 4, 0.55, G->seed);
+    return 2.0 * radial * r->vertical * fmax(0.0, turb);
 }
 
 static double density(const gen *G, double x, double y, double z) {
@@ -115,20 +147,9 @@ static double density(const gen *G, double x, double y, double z) {
         return fmax(0.0, base + G->noise * n);
     }
     case K_PLUME: {
-        /* A column rising from the floor centre, widening with height, its
-         * axis meandering and its density broken up by fBm. The centreline
-         * density falls as R0/R: the plume thins as it entrains air. */
-        double s = clamp01((y - G->lo[1]) / G->size[1]);
-        double w = fmin(G->size[0], G->size[2]);
-        double sway = 0.08 * w * lu_fbm3(1.7 * s, 0.0, 0.0, 2, 0.5, G->seed ^ 0x51u);
-        double swaz = 0.08 * w * lu_fbm3(0.0, 1.7 * s, 0.0, 2, 0.5, G->seed ^ 0xa3u);
-        double R = w * (0.05 + 0.2 * s);
-        double ex = dx - sway, ez = dz - swaz;
-        double radial = exp(-(ex * ex + ez * ez) / (R * R));
-        double vertical = smoothstep(0.0, 0.04, s) * (0.05 / (0.05 + 0.2 * s)) * (1.0 - smoothstep(0.85, 1.0, s));
-        double f = 4.0 / w;
-        double turb = 0.6 + 0.9 * lu_fbm3(x * f, (y - G->lo[1]) * f - 0.7, z * f, 4, 0.55, G->seed);
-        return 2.0 * radial * vertical * fmax(0.0, turb);
+        plume_row r;
+        plume_row_at(G, y, &r);
+        return plume_at(G, &r, x, y, z);
     }
     }
     return 0.0;
@@ -142,6 +163,12 @@ static void fill_rows(void *ctx, int64_t begin, int64_t end, int thread_index) {
         int j = (int)(row % g->ny), k = (int)(row / g->ny);
         double y = G->lo[1] + (j + 0.5) * G->h[1], z = G->lo[2] + (k + 0.5) * G->h[2];
         float *dst = g->data + (size_t)row * (size_t)g->nx;
+        if (G->kind == K_PLUME) {
+            plume_row r;
+            plume_row_at(G, y, &r);
+            for (int i = 0; i < g->nx; i++) dst[i] = (float)plume_at(G, &r, G->lo[0] + (i + 0.5) * G->h[0], y, z);
+            continue;
+        }
         for (int i = 0; i < g->nx; i++) dst[i] = (float)density(G, G->lo[0] + (i + 0.5) * G->h[0], y, z);
     }
 }
@@ -278,6 +305,8 @@ static lu_result parse_params(const lu_kvlist *p, gen *G, const char *where, lu_
         break;
     case K_PLUME:
         r = kv_seed(p, G, where, err);
+        NUM("rise", 0, 0, MAX_LENGTH, G->rise);
+        NUM("time", 0, -1e6, 1e6, G->time);
         break;
     }
 #undef NUM
@@ -294,7 +323,7 @@ lu_result lu_grid_procedural(const char *name, const lu_kvlist *params, lu_grid 
         {"center", "size", "resolution", "layers", "low", "high", "axis", NULL},
         {"center", "size", "resolution", "value", "major_radius", "minor_radius", NULL},
         {"center", "size", "resolution", "bottom", "top", "noise", "frequency", "seed", NULL},
-        {"center", "size", "resolution", "seed", NULL},
+        {"center", "size", "resolution", "seed", "rise", "time", NULL},
     };
     memset(g, 0, sizeof *g);
     if (!where) where = "procedural";
@@ -352,4 +381,10 @@ lu_result lu_grid_procedural(const char *name, const lu_kvlist *params, lu_grid 
     snprintf(g->name, sizeof g->name, "%s", name);
     lu_grid_update_range(g);
     return LU_OK;
+}
+
+bool lu_grid_procedural_animated(const char *name, const lu_kvlist *params) {
+    if (!name || strcmp(name, kind_names[K_PLUME]) != 0) return false;
+    const lu_kv *rise = lu_kv_find(params, "rise");
+    return rise && rise->count == 1 && rise->v[0] != 0.0;
 }

@@ -22,6 +22,16 @@ for f in include/lucent/lucent.h lib/cmake/lucent/lucentConfig.cmake lib/cmake/l
   [[ -f "$tmp/prefix/$f" ]] || { echo "FAIL: $f not installed"; fail=1; }
 done
 
+# .vdb input: the converter goes to libexec/lucent, and the installed lucent
+# finds it there relative to itself (this prefix is not the configured one).
+if [[ -x $build/lucent-vdb-convert ]]; then
+  conv=$(ls "$tmp"/prefix/libexec/lucent/lucent-vdb-convert 2>/dev/null)
+  [[ -n $conv ]] || { echo "FAIL: lucent-vdb-convert not installed under libexec/lucent"; fail=1; }
+  mkdir -p "$tmp/vdb" && "$build/lu_vdb_gen" "$tmp/vdb" >/dev/null || { echo "FAIL: lu_vdb_gen"; fail=1; }
+  "$tmp/prefix/bin/lucent" info "$tmp/vdb/twin.vdb" >"$tmp/vdb.log" 2>&1 && grep -q '"density"' "$tmp/vdb.log" ||
+    { cat "$tmp/vdb.log"; echo "FAIL: the installed lucent cannot read .vdb"; fail=1; }
+fi
+
 "$lucent" render "${args[0]}" --method "${args[1]}" --size "${args[2]}" --set "${args[3]}" -o "$tmp/cli.pfm" \
   2>"$tmp/cli.log" || { cat "$tmp/cli.log"; echo "FAIL: lucent render"; exit 1; }
 

@@ -34,7 +34,9 @@ usage_error() {  # expected-message args...
   grep -q -- "$want" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "view $*: message"; }
   [[ $(wc -l <"$tmp/e.txt") == 1 ]] || { cat "$tmp/e.txt"; fail "view $*: more than one line"; }
 }
-usage_error '--script takes orbit or light ("spin")' --script spin
+usage_error '--script takes orbit, light or play ("spin")' --script spin
+usage_error '--script play: nothing in the scene follows time' --script play
+usage_error '--time takes seconds' --time inf
 usage_error '--frames takes a positive integer ("0")' --script orbit --frames 0
 usage_error '--frames takes a positive integer ("x")' --script orbit --frames x
 usage_error '--budget takes milliseconds' --budget 0
@@ -129,4 +131,19 @@ turned light $((4 * n)) "$tmp/light.json"
 "$lucent" compare "$tmp/light.png" "$tmp/light_render.png" >"$tmp/c.txt" || fail "compare"
 awk '$1 == "rel_l2" { exit !($2 <= 1e-3) }' "$tmp/c.txt" || { cat "$tmp/c.txt"; fail "light: settled screenshot != render"; }
 echo "  light: settled screenshot vs render of the turned light $(grep rel_l2 "$tmp/c.txt")"
+
+# play: the animated plume's time advances a frame (1/24 s) per scripted
+# frame from --time 0.5; the settled image equals `render --time 0.5 + n/24`
+n=3
+plume=$src/scenes/smoke_plume.json
+view "$plume" "${cheap[@]}" --no-overlay --time 0.5 --script play --frames $n --budget 1 \
+  --screenshot "$tmp/play.png" 2>"$tmp/e.txt" || { cat "$tmp/e.txt"; fail "scripted play"; }
+grep "script play" "$tmp/e.txt"
+"$lucent" render "$plume" "${cheap[@]}" --backend auto --time 0.625 -o "$tmp/play_render.png" 2>/dev/null || fail "render --time"
+"$lucent" compare "$tmp/play.png" "$tmp/play_render.png" >"$tmp/c.txt" || fail "compare"
+awk '$1 == "rel_l2" { exit !($2 <= 1e-4) }' "$tmp/c.txt" || { cat "$tmp/c.txt"; fail "play: settled screenshot != render --time"; }
+echo "  play: settled screenshot vs render --time 0.625 $(grep rel_l2 "$tmp/c.txt")"
+"$lucent" render "$plume" "${cheap[@]}" --backend auto --time 0.5 -o "$tmp/play_start.png" 2>/dev/null || fail "render --time"
+"$lucent" compare "$tmp/play.png" "$tmp/play_start.png" >"$tmp/c.txt"
+awk '$1 == "rel_l2" { exit !($2 > 2e-3) }' "$tmp/c.txt" || { cat "$tmp/c.txt"; fail "play: the time did not move the image"; }
 echo ok

@@ -297,7 +297,7 @@ static void bssrdf_destroy(void *state) {
     if (!st) return;
     if (st->gpu) lu_bssrdf_gpu_destroy(st->gpu);
     if (st->all) lu_accel_destroy(st->all);
-    for (int i = 0; i < st->tcount; i++) {
+    for (int i = 0; st->t && i < st->tcount; i++) {
         lu_bssrdf_profile_destroy(&st->t[i].prof);
         if (st->t[i].own) lu_accel_destroy(st->t[i].own);
         lu_free(st->t[i].env);
@@ -556,7 +556,7 @@ static lu_result bssrdf_prepare(const lu_scene *scene, const double *params, lu_
     }
     /* One table array for every object. */
     size_t entries = 0;
-    for (int i = 0; i < st->tcount; i++) {
+    for (int i = 0; st->t && i < st->tcount; i++) {
         st->t[i].table_offset = (int)entries;
         entries += lu_bssrdf_profile_level_entries(&st->t[i].prof) * st->t[i].prof.levels;
     }

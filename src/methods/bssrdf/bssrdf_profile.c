@@ -6,6 +6,7 @@
 #include "methods/bssrdf/bssrdf_profile.h"
 
 #include <fftw3.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -56,40 +57,39 @@ static double radial_eval(const void *vctx, double r) {
     return 0.0;
 }
 
+/* One Simpson panel [2ih, 2ih + 2h] in t = ln r of 2 pi r^2 f(e^t). */
+static double eps_panel(lu_bssrdf_radial_fn f, const void *ctx, double t0, double h, int i) {
+    double ra = i ? exp(t0 + 2 * i * h) : exp(t0), rm = exp(t0 + (2 * i + 1) * h), rb = exp(t0 + (2 * i + 2) * h);
+    double fa = 2.0 * M_PI * ra * ra * f(ctx, ra), fm = 2.0 * M_PI * rm * rm * f(ctx, rm);
+    double fb = 2.0 * M_PI * rb * rb * f(ctx, rb);
+    return h / 3.0 * (fa + 4.0 * fm + fb);
+}
+
 /* Simpson in t = ln r of 2 pi r^2 f(e^t); r_max is where what lies beyond
- * drops below eps times ref (ref <= 0: times the total). The
- * crossing is interpolated linearly within the Simpson panel. */
+ * drops below eps times ref (ref <= 0: times the total). The crossing is
+ * interpolated linearly within the Simpson panel. Two passes over the
+ * panels (the total, then the crossing) rather than a stored running sum:
+ * this runs inside prepare, where an allocation could fail. */
 static double eps_radius_ref(lu_bssrdf_radial_fn f, const void *ctx, double r_lo, double r_hi, int n, double eps,
                              double ref, double *total) {
     if (n < 2) n = 2;
     if (n & 1) n++;
     double t0 = log(r_lo), t1 = log(r_hi), h = (t1 - t0) / n;
-    double *cum = lu_malloc((size_t)(n / 2 + 1) * sizeof *cum);
-    if (!cum) {
-        *total = 0.0;
-        return r_hi;
-    }
-    cum[0] = 0.0;
-    double fa = 2.0 * M_PI * r_lo * r_lo * f(ctx, r_lo);
+    double sum = 0.0;
+    for (int i = 0; i < n / 2; i++) sum += eps_panel(f, ctx, t0, h, i);
+    *total = sum;
+    double target = sum - eps * (ref > 0.0 ? ref : sum);
+    double cum = 0.0;
     for (int i = 0; i < n / 2; i++) {
-        double rm = exp(t0 + (2 * i + 1) * h), rb = exp(t0 + (2 * i + 2) * h);
-        double fm = 2.0 * M_PI * rm * rm * f(ctx, rm), fb = 2.0 * M_PI * rb * rb * f(ctx, rb);
-        cum[i + 1] = cum[i] + h / 3.0 * (fa + 4.0 * fm + fb);
-        fa = fb;
-    }
-    *total = cum[n / 2];
-    double target = *total - eps * (ref > 0.0 ? ref : *total);
-    double r_max = r_hi;
-    for (int i = 0; i < n / 2; i++) {
-        if (cum[i + 1] >= target) {
+        double next = cum + eps_panel(f, ctx, t0, h, i);
+        if (next >= target) {
             double a = exp(t0 + 2 * i * h), b = exp(t0 + (2 * i + 2) * h);
-            double w = cum[i + 1] > cum[i] ? (target - cum[i]) / (cum[i + 1] - cum[i]) : 1.0;
-            r_max = a + (b - a) * fmin(fmax(w, 0.0), 1.0);
-            break;
+            double w = next > cum ? (target - cum) / (next - cum) : 1.0;
+            return a + (b - a) * fmin(fmax(w, 0.0), 1.0);
         }
+        cum = next;
     }
-    lu_free(cum);
-    return r_max;
+    return r_hi;
 }
 
 double lu_bssrdf_eps_radius(lu_bssrdf_radial_fn f, const void *ctx, double r_lo, double r_hi, int n, double eps,
@@ -735,6 +735,7 @@ typedef struct prefilter_job {
     float rho0;
     size_t level_entries;
     double gx[PREFILTER_NG], gw[PREFILTER_NG];   /* Gauss-Legendre on [-1, 1] */
+    atomic_bool nomem;                            /* a worker's scratch could not be allocated */
 } prefilter_job;
 
 /* One row (of nr entries) of every level; rows are independent. With the
@@ -750,7 +751,10 @@ static void prefilter_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     lu_bssrdf_profile *p = j->p;
     int rows_per_level = (int)(j->level_entries / p->nr);
     double *cum = lu_malloc((size_t)3 * p->nr * sizeof *cum);
-    if (!cum) return;
+    if (!cum) {
+        atomic_store(&j->nomem, true);
+        return;
+    }
     for (int64_t row = begin; row < end; row++) {
         const float *src = p->table + (size_t)row * 3 * p->nr;
         bool transmit = p->kind && row >= p->nd;
@@ -810,9 +814,10 @@ lu_result lu_bssrdf_profile_prefilter(lu_bssrdf_profile *p, int levels, float rh
     p->table = t;
     p->levels = levels;
     p->rho0 = rho0;
-    prefilter_job j = {p, levels, rho0, per, {0}, {0}};
+    prefilter_job j = {p, levels, rho0, per, {0}, {0}, false};
     lu_gauss_legendre(PREFILTER_NG, j.gx, j.gw);
     lu_parallel_for((int64_t)(per / p->nr), 1, prefilter_rows, &j, NULL);
+    if (atomic_load(&j.nomem)) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory (profile prefilter)");
     return LU_OK;
 }
 

@@ -26,17 +26,17 @@
  *     or diffuse) constant medium the ray cast is fused with the free flight,
  *     and guide=dwivedi mixes Dwivedi-guided steps into the walk
  *     (pathtrace_guide.c);
- *   - a delta light behind a refracting boundary cannot be reached by
- *     next-event estimation. Light subpaths carry the light through the
- *     specular chain; their segments after the first specular event are
+ *   - a delta light behind a refracting boundary cannot be reached by a
+ *     straight shadow ray. Through exactly one refraction, manifold
+ *     next-event estimation (pathtrace_mnee.c) finds the boundary points
+ *     where its light refracts towards each camera vertex (single scattering
+ *     along the camera ray included; the walk samples internal reflections
+ *     itself). Longer specular chains: light subpaths carry the light
+ *     through them, their segments after the second specular event (or
+ *     after a first one that is not a refraction into a medium) are
  *     "beams", and each camera vertex connects to a point on each beam
- *     (equiangular or exponential, Kulla and Fajardo 2012). A vertex inside a
- *     refracting medium also makes its own beam: a uniform direction finds a
- *     boundary point s where the light refracts in. Both strategies make the
- *     single-refraction beams and are combined there by the balance
- *     heuristic; no strategy reaches a beam point that is the only scattering
- *     vertex between two specular chains (single scattering seen through a
- *     refracting boundary, Walter et al. 2009), which is missing.
+ *     (equiangular or exponential, Kulla and Fajardo 2012); the segment
+ *     after a single refraction is no beam, so nothing is counted twice.
  * Depth counts scattering vertices (volume events and surface bounces, not
  * dielectric interface events): depth 1 is single scattering and reproduces
  * `reference`.
@@ -44,7 +44,8 @@
  * Over 800 lines: one path's strategies (next-event estimation, beams, light
  * subpaths, the interface events) share its private state
  * (pathtrace_state.h) and helpers; free flight and the subsurface walk's
- * steps live in pathtrace_walk.c, the Dwivedi sampling in pathtrace_guide.c. */
+ * steps live in pathtrace_walk.c, the Dwivedi sampling in pathtrace_guide.c,
+ * the manifold solver in pathtrace_mnee.c. */
 #include <lucent/lucent.h>
 
 #include <stdatomic.h>
@@ -54,6 +55,7 @@
 
 #include "methods/frame.h"
 #include "methods/methods.h"
+#include "methods/common/mesh_adjacency.h"
 #include "methods/pathtrace/pathtrace_state.h"
 
 enum {
@@ -283,6 +285,8 @@ typedef struct pt_vertex {
     lu_vec3 n, wo; /* surface: shading normal facing wo, direction to the previous vertex */
     const lu_material *mat;
     uint64_t mask; /* media present at x */
+    bool has_seed_n;
+    lu_vec3 seed_n; /* outward normal at the path's last sealed boundary point: a guess for mnee */
 } pt_vertex;
 
 /* Scattering function towards wl (phase, or BRDF x cos) and the pdf with
@@ -303,19 +307,69 @@ static lu_vec3 vertex_eval(const pt_vertex *v, lu_vec3 wl, float *pdf) {
     return lu_k_blinn_phong(m->albedo, m->specular, m->shininess, v->n, v->wo, wl);
 }
 
+/* Delta light l seen from v through exactly one refraction, into the one
+ * sealed medium that holds v and not the light (manifold next-event
+ * estimation, pathtrace_mnee.c): light x Fresnel transmittance x the
+ * refraction's irradiance factor x transmittance both sides x scattering at
+ * v. No radiance factor eta^2: the light's flux is what is carried (as on
+ * light subpaths). The search starts from two guesses, the straight line to
+ * the light and the light refracted at the path's last boundary normal;
+ * solutions on distinct facets are distinct paths and all count. */
+static lu_vec3 mnee(const pt_state *st, const pt_vertex *v, int l, lu_k_rng *rng) {
+    lu_vec3 sum = lu_v3s(0.0f);
+    uint64_t need = v->mask & st->sealed_bits & ~st->light_mask[l];
+    if (!need || (need & (need - 1))) return sum; /* two or more refractions: light subpaths only */
+    int bit = 0;
+    while (!((need >> bit) & 1u)) bit++;
+    int m = st->bit_medium[bit];
+    const pt_medium *pm = &st->media[m];
+    if (!pm->refract) return sum;
+    const lu_k_light kl = st->klights[l];
+    lu_vec3 seeds[2];
+    int ns = 0;
+    lu_k_light_sample l0 = lu_k_light_arrive(kl, v->x);
+    seeds[ns++] = l0.wl;
+    lu_vec3 tr0;
+    if (v->has_seed_n && lu_v3_dot(v->seed_n, l0.wl) > 0.0f && lu_k_refract(lu_v3_neg(l0.wl), v->seed_n, pm->eta, &tr0))
+        seeds[ns++] = lu_v3_neg(tr0);
+    pt_mnee_path paths[PT_MNEE_MAX];
+    int np = lu_pt_mnee_solve(st, m, kl, v->x, seeds, ns, paths, PT_MNEE_MAX);
+    uint64_t outside = mask_set(v->mask, pm->bit, false);
+    for (int k = 0; k < np; k++) {
+        const pt_mnee_path mp = paths[k];
+        lu_vec3 s_out = lu_v3_madd(mp.s, mp.ns, st->eps);
+        lu_k_light_sample ls = lu_k_light_arrive(kl, s_out);
+        if (lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
+        lu_vec3 wl = lu_v3_neg(mp.t);
+        float pv;
+        lu_vec3 f = vertex_eval(v, wl, &pv);
+        if (lu_v3_maxc(f) <= 0.0f) continue;
+        float left = mp.dist - st->eps;
+        lu_vec3 tin = left > 0.0f ? transmit(st, v->x, wl, left, v->mask, rng) : lu_v3s(1.0f);
+        if (lu_v3_maxc(tin) <= 0.0f) continue;
+        lu_vec3 tout = transmit(st, s_out, ls.wl, ls.dist, outside, rng);
+        if (lu_v3_maxc(tout) <= 0.0f) continue;
+        float k_ref = mp.gain * lu_k_fresnel_transmittance(mp.cos_i, pm->eta);
+        sum = lu_v3_add(sum, lu_v3_scale(lu_v3_mul(lu_v3_mul(f, ls.irradiance), lu_v3_mul(tin, tout)), k_ref));
+    }
+    return sum;
+}
+
 /* Next-event estimation to every light. `mis`: the path will also sample a
  * continuation from this vertex (so environment hits are shared by MIS). */
 static lu_vec3 nee(const pt_state *st, const pt_vertex *v, bool mis, lu_k_rng *rng) {
     const lu_scene *s = st->scene;
     lu_vec3 sum = lu_v3s(0.0f);
     int env_i = 0;
-    /* A light outside a refracting medium the vertex is in cannot be
-     * connected to (the shadow ray would meet the dielectric): skip the ray. */
+    /* A light outside a sealed medium the vertex is in cannot be connected
+     * to by a straight shadow ray (it would meet the interface): a delta
+     * light behind one refraction is reached by mnee, the rest by the path. */
     uint64_t enclosing = v->mask & st->sealed_bits;
     for (int l = 0; l < s->light_count; l++) {
         const lu_light *light = &s->lights[l];
         if (enclosing & ~st->light_mask[l]) {
-            env_i += light->type == LU_LIGHT_ENVIRONMENT;
+            if (light->type == LU_LIGHT_ENVIRONMENT) env_i++;
+            else sum = lu_v3_add(sum, mnee(st, v, l, rng));
             continue;
         }
         if (light->type == LU_LIGHT_ENVIRONMENT) {
@@ -511,115 +565,10 @@ static lu_vec3 beam_contrib(const pt_state *st, const pt_vertex *v, const pt_bea
     return lu_v3_scale(c, 1.0f / (d2 * pdf));
 }
 
-/* Area density with which the vertex strategy, from x, picks boundary point
- * s of medium m (outward normal ns): a uniform direction from x whose first
- * hit is s. 0 when something else is hit first. */
-static float vertex_strategy_pdf(const pt_state *st, lu_vec3 x, int m, lu_vec3 s, lu_vec3 ns) {
-    lu_vec3 to = lu_v3_sub(s, x);
-    float dist = lu_v3_len(to);
-    if (!(dist > 0.0f)) return 0.0f;
-    lu_vec3 w = lu_v3_scale(to, 1.0f / dist);
-    float c = lu_v3_dot(ns, w);
-    if (!(c > 0.0f)) return 0.0f;
-    lu_hit hit;
-    if (!lu_accel_closest(st->surf, x, w, 0.0f, dist * 1.001f + st->eps, &hit)) return 0.0f;
-    const pt_surf *sf = &st->surf_info[hit.mesh_id];
-    if (sf->kind != SURF_BOUNDARY || sf->index != m || hit.t < dist * 0.999f - st->eps) return 0.0f;
-    return LU_INV_4PI * c / (dist * dist);
-}
-
-/* Area density of the light subpath strategy reaching boundary point s
- * (light arriving from direction wl at cos_i, distance r) and refracting
- * there with probability ft. */
-static float forward_strategy_pdf(const pt_state *st, int l, lu_vec3 s, float cos_i, float ft) {
-    if (st->light_paths <= 0) return 0.0f;
-    const lu_k_light kl = st->klights[l];
-    float pa;
-    if (kl.type == LU_K_LIGHT_DIRECTIONAL) {
-        pa = cos_i / (LU_PI * st->refract_radius * st->refract_radius);
-    } else {
-        lu_vec3 to = lu_v3_sub(s, kl.position);
-        float r2 = lu_v3_dot(to, to);
-        float dc = lu_v3_len(lu_v3_sub(st->refract_center, kl.position));
-        float pw;
-        if (dc <= st->refract_radius * 1.0001f) {
-            pw = 1.0f / (4.0f * LU_PI);
-        } else {
-            float sin2 = st->refract_radius * st->refract_radius / (dc * dc);
-            pw = lu_k_cone_pdf(sqrtf(fmaxf(0.0f, 1.0f - sin2)));
-        }
-        pa = pw * cos_i / r2;
-    }
-    return (float)st->light_paths * pa * ft;
-}
-
-/* Connects vertex v to every forward beam, weighting those the vertex
- * strategy also makes by the balance heuristic. */
+/* Connects vertex v to every light beam. */
 static lu_vec3 connect_beams(const pt_state *st, const pt_vertex *v, const pt_beam *beams, int nbeams, lu_k_rng *rng) {
     lu_vec3 sum = lu_v3s(0.0f);
-    for (int i = 0; i < nbeams; i++) {
-        const pt_beam *b = &beams[i];
-        float w = 1.0f;
-        if (b->entry_medium >= 0 && medium_active(&st->media[b->entry_medium], v->mask)) {
-            float pv = vertex_strategy_pdf(st, v->x, b->entry_medium, b->s, b->ns) / (float)st->delta_light_count;
-            w = b->pdf_fwd / (b->pdf_fwd + pv);
-        }
-        if (w > 0.0f) sum = lu_v3_madd(sum, beam_contrib(st, v, b, rng), w);
-    }
-    return sum;
-}
-
-/* The vertex strategy for lights behind a refracting boundary: from v
- * inside refracting medium m, a uniform direction finds boundary point s;
- * the light refracting in at s is a beam, connected like the forward ones.
- * Balance heuristic against the light subpaths that make the same beam. */
-static lu_vec3 connect_vertex_beams(const pt_state *st, const pt_vertex *v, lu_k_rng *rng) {
-    const lu_scene *sc = st->scene;
-    lu_vec3 sum = lu_v3s(0.0f);
-    for (int m = 0; m < st->medium_count; m++) {
-        const pt_medium *pm = &st->media[m];
-        if (!pm->refract || !medium_active(pm, v->mask)) continue;
-        /* One delta light, chosen uniformly (its estimate scaled by the count). */
-        int pick = (int)(rnd(rng) * (float)st->delta_light_count), seen = 0;
-        for (int l = 0; l < sc->light_count; l++) {
-            if (sc->lights[l].type == LU_LIGHT_ENVIRONMENT) continue;
-            if (seen++ != pick) continue;
-            float u1 = rnd(rng), u2 = rnd(rng);
-            lu_vec3 w = lu_k_sample_sphere(u1, u2);
-            lu_hit hit;
-            if (!lu_accel_closest(st->surf, v->x, w, 0.0f, LU_K_FAR, &hit)) continue;
-            const pt_surf *sf = &st->surf_info[hit.mesh_id];
-            float cx = lu_v3_dot(hit.ng, w);
-            if (sf->kind != SURF_BOUNDARY || sf->index != m || !(cx > 0.0f)) continue;
-            float p_vtx = LU_INV_4PI * cx / (hit.t * hit.t);
-            lu_vec3 s = lu_v3_madd(v->x, w, hit.t);
-            lu_vec3 s_out = lu_v3_madd(s, hit.ng, st->eps);
-            lu_k_light_sample ls = lu_k_light_arrive(st->klights[l], s_out);
-            float cos_i = lu_v3_dot(hit.ng, ls.wl);
-            if (!(cos_i > 0.0f) || lu_v3_maxc(ls.irradiance) <= 0.0f) continue;
-            lu_vec3 u;
-            if (!lu_k_refract(lu_v3_neg(ls.wl), hit.ng, pm->eta, &u)) continue;
-            float ft = lu_k_fresnel_transmittance(cos_i, pm->eta);
-            uint64_t outside = mask_set(v->mask, pm->bit, false);
-            lu_vec3 tl = transmit(st, s_out, ls.wl, ls.dist, outside, rng);
-            if (lu_v3_maxc(tl) <= 0.0f) continue;
-            pt_beam b;
-            b.o = lu_v3_madd(s, hit.ng, -st->eps);
-            b.u = u;
-            lu_hit h2;
-            b.len = lu_accel_closest(st->surf, b.o, u, 0.0f, LU_K_FAR, &h2) ? h2.t : 0.0f;
-            if (!(b.len > 0.0f)) continue;
-            b.mask = v->mask;
-            b.lambda = pm->lambda;
-            b.entry_medium = -1;
-            float p_fwd = forward_strategy_pdf(st, l, s, cos_i, ft);
-            /* Balance heuristic over (light, s): this strategy's density is
-             * p_vtx / n (light picked uniformly), the light subpaths' p_fwd. */
-            float n = (float)st->delta_light_count;
-            b.flux = lu_v3_scale(lu_v3_mul(ls.irradiance, tl), n * cos_i * ft / (p_vtx + n * p_fwd));
-            sum = lu_v3_add(sum, beam_contrib(st, v, &b, rng));
-        }
-    }
+    for (int i = 0; i < nbeams; i++) sum = lu_v3_add(sum, beam_contrib(st, v, &beams[i], rng));
     return sum;
 }
 
@@ -667,14 +616,15 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams, 
                 flux = lu_v3_scale(kl.intensity, fall / pdf);
             }
             bool specular = false;
-            int entry_m = -1; /* set for the segment right after refracting in first */
-            lu_vec3 entry_s = lu_v3s(0.0f), entry_n = lu_v3s(0.0f);
-            float entry_pdf = 0.0f;
+            /* The segment right after refracting into a medium as the first
+             * specular event: its points are reached by mnee from the
+             * camera's vertices, so it is no beam (nothing counted twice). */
+            bool mnee_owned = false;
             for (int seg = 0; seg < PT_MAX_LIGHT_SEGMENTS && lu_v3_maxc(flux) > 0.0f; seg++) {
                 lu_hit hit;
                 bool has = st->surf && lu_accel_closest(st->surf, o, d, 0.0f, LU_K_FAR, &hit);
                 float t_end = has ? hit.t : LU_K_FAR;
-                if (specular && nb < cap) { /* cap: every segment of every subpath fits */
+                if (specular && !mnee_owned && nb < cap) { /* cap: every segment of every subpath fits */
                     /* Clip to the media present along the segment. */
                     float a0 = INFINITY, b0 = -INFINITY, lambda = 0.0f;
                     for (int m = 0; m < st->medium_count; m++) {
@@ -693,13 +643,9 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams, 
                         bm->flux = flux; /* nothing attenuates before a0 */
                         bm->mask = mask;
                         bm->lambda = lambda;
-                        bm->entry_medium = entry_m;
-                        bm->s = entry_s;
-                        bm->ns = entry_n;
-                        bm->pdf_fwd = entry_pdf;
                     }
                 }
-                entry_m = -1;
+                mnee_owned = false;
                 flux = lu_v3_mul(flux, media_transmittance(st, o, d, t_end, mask, rng));
                 if (!has) break;
                 const pt_surf *sf = &st->surf_info[hit.mesh_id];
@@ -717,14 +663,7 @@ static int trace_light_paths(const pt_state *st, lu_k_rng *rng, pt_beam *beams, 
                 bool entering = lu_v3_dot(hit.ng, d) < 0.0f;
                 lu_k_dielectric_sample ds = lu_k_sample_dielectric(d, hit.ng, pm->eta, rnd(rng));
                 if (ds.refracted) mask = mask_set(mask, pm->bit, entering);
-                entry_m = -1;
-                if (!specular && ds.refracted && entering) {
-                    float cos_i = -lu_v3_dot(hit.ng, d);
-                    entry_m = sf->index;
-                    entry_s = p;
-                    entry_n = hit.ng;
-                    entry_pdf = forward_strategy_pdf(st, l, p, cos_i, lu_k_fresnel_transmittance(cos_i, pm->eta));
-                }
+                mnee_owned = !specular && ds.refracted && entering;
                 d = ds.wi;
                 o = offset_point(p, hit.ng, d, st->eps);
                 specular = true;
@@ -796,6 +735,8 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
             PT_COUNT(cs, vertices);
             if (mask & st->sealed_bits) PT_COUNT(cs, sealed_vertices);
             pt_vertex v = {0};
+            v.has_seed_n = have_guide_n;
+            v.seed_n = guide_n;
             v.surface = false;
             v.x = lu_v3_madd(o, d, fl.t);
             v.d = d;
@@ -807,7 +748,7 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                 L = lu_v3_add(
                     L,
                     lu_v3_mul(spectral_weight(beta, r),
-                              lu_v3_add(connect_beams(st, &v, beams, nbeams, rng), connect_vertex_beams(st, &v, rng))));
+                              connect_beams(st, &v, beams, nbeams, rng)));
             }
             if (depth >= st->max_depth) break;
             lu_vec3 wi;
@@ -879,6 +820,8 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                     lu_vec3 n = entering ? lu_v3_neg(hit.ng) : hit.ng;
                     mask = mask_set(mask, pm->bit, entering);
                     pt_vertex v = {0};
+                    v.has_seed_n = have_guide_n;
+                    v.seed_n = guide_n;
                     v.surface = true;
                     v.lambert_t = true;
                     v.x = lu_v3_madd(p, n, st->eps);
@@ -888,8 +831,7 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                     L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r), nee(st, &v, true, rng)));
                     if (beams_on && depth + 1 <= st->max_depth)
                         L = lu_v3_add(L, lu_v3_mul(spectral_weight(beta, r),
-                                                   lu_v3_add(connect_beams(st, &v, beams, nbeams, rng),
-                                                             connect_vertex_beams(st, &v, rng))));
+                                                   connect_beams(st, &v, beams, nbeams, rng)));
                     float u1 = rnd(rng), u2 = rnd(rng);
                     d = lu_k_sample_cosine(n, u1, u2);
                     prev_pdf = fmaxf(lu_v3_dot(n, d), 0.0f) * LU_K_INV_PI;
@@ -906,6 +848,8 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                      * light weighted by F_r at every entry. */
                     if (entering && depth + 1 <= st->max_depth) {
                         pt_vertex v = {0};
+                        v.has_seed_n = have_guide_n;
+                        v.seed_n = guide_n;
                         v.surface = true;
                         v.x = lu_v3_madd(p, hit.ng, st->eps);
                         v.n = hit.ng;
@@ -956,6 +900,8 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
             if (lu_v3_dot(ng, d) > 0.0f) ng = lu_v3_neg(ng);
             if (lu_v3_dot(n, ng) < 0.0f) n = lu_v3_neg(n);
             pt_vertex v = {0};
+            v.has_seed_n = have_guide_n;
+            v.seed_n = guide_n;
             v.surface = true;
             v.x = lu_v3_madd(p, ng, st->eps);
             v.n = n;
@@ -967,7 +913,7 @@ static lu_vec3 trace_path(const pt_state *st, lu_vec3 o, lu_vec3 d, int hero, pt
                 L = lu_v3_add(
                     L,
                     lu_v3_mul(spectral_weight(beta, r),
-                              lu_v3_add(connect_beams(st, &v, beams, nbeams, rng), connect_vertex_beams(st, &v, rng))));
+                              connect_beams(st, &v, beams, nbeams, rng)));
             if (depth >= st->max_depth) break;
             float ul = rnd(rng), u1 = rnd(rng), u2 = rnd(rng), pdf;
             const lu_material *mat = &ob->material;
@@ -1068,11 +1014,12 @@ static void pt_destroy(void *state) {
     pt_state *st = state;
     if (!st) return;
     if (st->surf) lu_accel_destroy(st->surf);
-    for (int m = 0; m < st->medium_count; m++) {
+    for (int m = 0; st->media && m < st->medium_count; m++) {
         lu_pt_majorant_destroy(&st->media[m].maj);
         if (st->media[m].inside) lu_accel_destroy(st->media[m].inside);
+        lu_free(st->media[m].neighbours);
     }
-    for (int i = 0; i < st->env_count; i++) env_destroy(&st->envs[i]);
+    for (int i = 0; st->envs && i < st->env_count; i++) env_destroy(&st->envs[i]);
     lu_free(st->envs);
     lu_free(st->media);
     lu_free(st->surf_info);
@@ -1161,6 +1108,7 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
             break;
         }
         pm->bit = bits++;
+        st->bit_medium[pm->bit] = m;
         pm->refract =
             st->boundary_mode == BOUNDARY_REFRACT || (st->boundary_mode == BOUNDARY_AUTO && med->from_object >= 0);
         pm->diffuse = st->boundary_mode == BOUNDARY_DIFFUSE;
@@ -1174,6 +1122,7 @@ static lu_result pt_prepare(const lu_scene *scene, const double *params, lu_back
         }
         if (r == LU_OK) r = lu_accel_add_mesh(pm->inside, &med->boundary, &id, err);
         if (r == LU_OK) r = lu_accel_commit(pm->inside, err);
+        if (r == LU_OK && pm->refract) r = lu_mesh_edge_neighbours(&med->boundary, &pm->neighbours, err);
         if (pm->refract) {
             st->have_refract = true;
             st->refract_bits = mask_set(st->refract_bits, pm->bit, true);

@@ -65,6 +65,7 @@ typedef struct pt_medium {
     lu_accel *inside;   /* its boundary alone, for inside tests */
     float v0[3], vlog[3]; /* constant media: Dwivedi's v0 per channel and ln((v0 + 1) / (v0 - 1)) */
     float guide_prob;     /* share of guided steps in the mixture; 0: not guided */
+    uint32_t *neighbours; /* refracting boundaries: triangle adjacency (methods/common/mesh_adjacency.h) */
 } pt_medium;
 
 enum { SURF_OPAQUE = 0, SURF_BOUNDARY };
@@ -87,13 +88,19 @@ typedef struct pt_beam {
     lu_vec3 flux;
     uint64_t mask;
     float lambda;
-    /* Forward beams that are the first segment after refracting into a
-     * bounded medium: the vertex strategy (connect_vertex_beams) makes the
-     * same beams, so these carry what its MIS weight needs. */
-    int entry_medium; /* -1: no other strategy makes this beam */
-    lu_vec3 s, ns;    /* entry point and outward normal there */
-    float pdf_fwd;    /* area pdf of s under light subpath sampling (refraction choice included) */
 } pt_beam;
+
+/* One light path found by manifold next-event estimation (pathtrace_mnee.c):
+ * light -> refraction at s -> x. */
+typedef struct pt_mnee_path {
+    lu_vec3 s, ns;  /* boundary point and outward geometric normal there */
+    lu_vec3 t;      /* refracted direction at s, travelling towards x */
+    float dist;     /* |x - s| */
+    float cos_i;    /* incidence cosine outside */
+    float gain;     /* irradiance facing the light along t at x, before Fresnel and media, over the
+                       irradiance at s facing the light */
+    uint32_t prim;  /* boundary triangle of s */
+} pt_mnee_path;
 
 struct pt_state {
     int spp, max_depth, rr_depth, light_paths;
@@ -118,6 +125,7 @@ struct pt_state {
     bool have_refract;
     uint64_t refract_bits; /* inside-mask bits of refracting media */
     uint64_t sealed_bits;  /* refracting or diffuse: no shadow ray crosses their boundary */
+    int bit_medium[PT_MAX_BOUNDED]; /* medium of each inside-mask bit */
     int delta_light_count;
     lu_vec3 refract_center;
     float refract_radius;
@@ -198,5 +206,14 @@ bool lu_pt_free_flight_to_surface(const pt_state *st, lu_vec3 o, lu_vec3 d, uint
 bool lu_pt_guide_applies(const pt_state *st, int m, uint64_t mask);
 pt_flight lu_pt_guided_step(const pt_state *st, int m, lu_vec3 o, lu_vec3 d, lu_vec3 n_out, bool guided, float phase,
                             int hero, lu_vec3 *beta, lu_vec3 *r, lu_k_rng *rng, lu_hit *hit, bool *has);
+
+/* pathtrace_mnee.c: from x inside refracting medium m, the points on m's
+ * boundary where light kl refracts towards x: a walk over the facets from
+ * the first one each ray from x along seeds[k] meets, then the patch of
+ * neighbouring facets that also hold one. Returns how many (at most cap),
+ * each on its own facet. */
+#define PT_MNEE_MAX 16
+int lu_pt_mnee_solve(const pt_state *st, int m, lu_k_light kl, lu_vec3 x, const lu_vec3 *seeds, int nseeds,
+                     pt_mnee_path *out, int cap);
 
 #endif

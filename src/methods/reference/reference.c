@@ -104,6 +104,7 @@ typedef struct ref_state {
     lu_k_light *klights;
     lu_image *out;
     bool overflow;             /* a ray crossed more than MAX_CROSSINGS boundary faces */
+    bool nomem;                /* a ray's piece list could not grow (its pixel is then wrong) */
 } ref_state;
 
 /* ---- geometry helpers ---------------------------------------------------- */
@@ -463,7 +464,7 @@ static lu_vec3 trace(ref_state *st, thread_scratch *ts, lu_vec3 o, lu_vec3 d, fl
         int nc;
         int n = medium_intervals(st, m, o, d, 0.0f, t_end, iv, 64, ts->crossings, &nc);
         for (int i = 0; i < n; i++)
-            if (!track_add_interval(st, tr, m, o, d, iv[2 * i], iv[2 * i + 1])) st->overflow = true;
+            if (!track_add_interval(st, tr, m, o, d, iv[2 * i], iv[2 * i + 1])) st->nomem = true;
         for (int i = 0; i < nc && nentries < MAX_CROSSINGS; i++) {
             if (lu_v3_dot(ts->crossings[i].ng, d) >= 0.0f) continue; /* exits show no reflection */
             entries[nentries] = ts->crossings[i];
@@ -560,11 +561,11 @@ static void ref_destroy(void *state) {
     ref_state *st = state;
     if (!st) return;
     if (st->opaque) lu_accel_destroy(st->opaque);
-    for (int m = 0; m < st->medium_count; m++)
+    for (int m = 0; st->media && m < st->medium_count; m++)
         if (st->media[m].boundary) lu_accel_destroy(st->media[m].boundary);
     if (st->scratch)
         for (int t = 0; t < st->threads; t++) {
-            for (int m = 0; m < st->medium_count; m++) lu_free(st->scratch[t].tracks[m].pieces);
+            for (int m = 0; st->scratch[t].tracks && m < st->medium_count; m++) lu_free(st->scratch[t].tracks[m].pieces);
             lu_free(st->scratch[t].tracks);
         }
     lu_free(st->scratch);
@@ -630,6 +631,7 @@ static lu_result ref_render(void *state, const lu_frame *frame, lu_image *out, l
     st->kctx.media = scene->media;
     st->out = out;
     st->overflow = false;
+    st->nomem = false;
     const lu_camera *c = &scene->camera;
     st->cam = frame->rec->cam;
     lu_free(st->klights);
@@ -637,9 +639,9 @@ static lu_result ref_render(void *state, const lu_frame *frame, lu_image *out, l
     if (!st->klights) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
     for (int l = 0; l < scene->light_count; l++) st->klights[l] = lu_light_to_kernel(&scene->lights[l]);
     lu_parallel_for(c->height, 1, render_rows, st, "reference");
+    if (st->nomem) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory (a ray's transmittance pieces)");
     if (st->overflow)
-        return lu_fail(err, LU_ERR_LIMIT, "reference: a ray crossed more than %d boundary faces or ran out of memory",
-                       MAX_CROSSINGS);
+        return lu_fail(err, LU_ERR_LIMIT, "reference: a ray crossed more than %d boundary faces", MAX_CROSSINGS);
     return LU_OK;
 }
 

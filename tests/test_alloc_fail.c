@@ -1,0 +1,297 @@
+/* Allocation failure (docs/reliability.md, "Faults"): the host allocator
+ * (lu_host) fails the N-th allocation of one job, swept over N. A job is one
+ * method's renderer made for a loaded scene, two frames rendered (the second
+ * after a camera move, so the frame stage's update path runs too) and the
+ * renderer destroyed. For every N the job must
+ *   - succeed, or fail with LU_ERR_NOMEM and a message;
+ *   - leave no allocation of its own alive once destroyed (counted by the
+ *     allocator itself, so it holds in every build, not only under
+ *     LeakSanitizer);
+ *   - leave the library working: when the failure hit a render, the same
+ *     renderer renders again, and its image equals the job's unfailed image
+ *     bit for bit.
+ * Without an argument the sweep is sampled (the first allocations, then an
+ * even spread); `test_alloc_fail --full` fails every N, as `make soak` runs
+ * it. One thread, so the allocation order is the same on every run. */
+#include "lu_test.h"
+
+#include <pthread.h>
+#include <stdalign.h>
+#include <stdatomic.h>
+#include <stddef.h>
+
+static atomic_long g_count;   /* allocations (and reallocations) since the counter was reset */
+static atomic_long g_fail_at; /* 0: never fail */
+static atomic_long g_failed;  /* how many were refused */
+static atomic_long g_live;    /* blocks alive */
+
+/* Each block carries a header linking it into the list of live blocks, so
+ * a leak can be named by its allocation number and size. max_align_t keeps
+ * the block's alignment that of malloc. */
+typedef union block {
+    struct {
+        union block *prev, *next;
+        long index;
+        size_t size;
+    } h;
+    max_align_t align;
+} block;
+static block g_head = {.h = {&g_head, &g_head, 0, 0}};
+static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;
+
+static void link_block(block *b, long index, size_t size) {
+    b->h.index = index, b->h.size = size;
+    pthread_mutex_lock(&g_lock);
+    b->h.next = g_head.h.next, b->h.prev = &g_head;
+    g_head.h.next->h.prev = b, g_head.h.next = b;
+    pthread_mutex_unlock(&g_lock);
+    atomic_fetch_add(&g_live, 1);
+}
+
+static void unlink_block(block *b) {
+    pthread_mutex_lock(&g_lock);
+    b->h.prev->h.next = b->h.next, b->h.next->h.prev = b->h.prev;
+    pthread_mutex_unlock(&g_lock);
+    atomic_fetch_sub(&g_live, 1);
+}
+
+/* A breakpoint for a debugger: `break refused` stops at each refusal. */
+__attribute__((noinline)) static void refused(void) { __asm__ volatile(""); }
+
+/* The allocation's number in the job, or 0 when it is to be refused. */
+static long next_index(void) {
+    long n = atomic_fetch_add(&g_count, 1) + 1;
+    if (n != atomic_load(&g_fail_at)) return n;
+    atomic_fetch_add(&g_failed, 1);
+    refused();
+    return 0;
+}
+
+static void *t_alloc(size_t size, void *user) {
+    (void)user;
+    long n = next_index();
+    block *b = n ? malloc(sizeof(block) + size) : NULL;
+    if (!b) return NULL;
+    link_block(b, n, size);
+    return b + 1;
+}
+
+static void *t_realloc(void *ptr, size_t size, void *user) {
+    if (!ptr) return t_alloc(size, user);
+    long n = next_index();
+    if (!n) return NULL;
+    block *b = (block *)ptr - 1;
+    unlink_block(b);
+    block *nb = realloc(b, sizeof(block) + size);
+    if (!nb) {
+        link_block(b, b->h.index, b->h.size);
+        return NULL;
+    }
+    link_block(nb, n, size);
+    return nb + 1;
+}
+
+static void t_free(void *ptr, void *user) {
+    (void)user;
+    if (!ptr) return;
+    block *b = (block *)ptr - 1;
+    unlink_block(b);
+    free(b);
+}
+
+/* Prints the blocks allocated since the job began (those numbered by it)
+ * that are still alive: the leak's allocation numbers and sizes. */
+static void print_leaks(const char *what, long live0) {
+    long shown = 0;
+    pthread_mutex_lock(&g_lock);
+    for (block *b = g_head.h.next; b != &g_head && shown < 8; b = b->h.next, shown++)
+        if (shown < atomic_load(&g_live) - live0)
+            fprintf(stderr, "    %s: alive: allocation %ld of the job, %zu bytes\n", what, b->h.index, b->h.size);
+    pthread_mutex_unlock(&g_lock);
+}
+
+static void quiet_log(lu_log_level level, const char *message, void *user) {
+    (void)level, (void)message, (void)user;
+}
+
+typedef struct job {
+    const char *method, *settings;
+    lu_scene *scene;
+} job;
+
+typedef struct outcome {
+    lu_result result;        /* the first failure, or LU_OK */
+    char message[256];
+    bool retried;            /* a render failed and the renderer rendered again */
+    lu_image img;            /* the second frame: from the job, or from the retry */
+} outcome;
+
+static void move_camera(lu_scene *s, float a) {
+    lu_vec3 d = lu_v3_sub(s->camera.position, s->camera.look_at);
+    float ca = cosf(a), sa = sinf(a);
+    s->camera.position = lu_v3_add(s->camera.look_at, lu_v3(ca * d.x + sa * d.z, d.y, -sa * d.x + ca * d.z));
+}
+
+/* Runs the job with the N-th allocation failing (0: none). */
+static void run(const job *j, long fail_at, outcome *o) {
+    memset(o, 0, sizeof *o);
+    lu_scene *s = j->scene;
+    lu_vec3 c0 = s->camera.position;
+    lu_error err = {0};
+    lu_kvlist kv = {0};
+    lu_renderer *r = NULL;
+    lu_image first = {0};
+    atomic_store(&g_count, 0);
+    atomic_store(&g_fail_at, fail_at);
+
+    lu_result res = LU_OK;
+    char buf[256];
+    snprintf(buf, sizeof buf, "%s", j->settings);
+    for (char *tok = strtok(buf, " "); tok && res == LU_OK; tok = strtok(NULL, " "))
+        res = lu_kv_parse_assignment(&kv, tok, &err);
+    if (res == LU_OK) res = lu_renderer_create(j->method, s, &kv, LU_BACKEND_CPU, &r, &err);
+    if (res == LU_OK) res = lu_renderer_render(r, s, &first, &err);
+    if (res == LU_OK) {
+        move_camera(s, 0.1f);
+        res = lu_renderer_render(r, s, &o->img, &err);
+    }
+    o->result = res;
+    snprintf(o->message, sizeof o->message, "%.200s", res == LU_OK ? "" : err.message);
+    atomic_store(&g_fail_at, 0);
+    if (res != LU_OK && r) {
+        /* The renderer must still work: render the two frames again. */
+        o->retried = true;
+        lu_error e2 = {0};
+        lu_image_destroy(&first);
+        lu_image_destroy(&o->img);
+        s->camera.position = c0;
+        lu_result r2 = lu_renderer_render(r, s, &first, &e2);
+        move_camera(s, 0.1f);
+        if (r2 == LU_OK) r2 = lu_renderer_render(r, s, &o->img, &e2);
+        if (r2 != LU_OK) {
+            o->retried = false;
+            lu_image_destroy(&o->img);
+            snprintf(o->message + strlen(o->message), sizeof o->message - strlen(o->message),
+                     " / retry: %.100s", e2.message);
+        }
+    }
+    s->camera.position = c0;
+    lu_image_destroy(&first);
+    lu_renderer_destroy(r);
+    lu_kv_free(&kv);
+}
+
+/* The job's unfailed image, kept outside the counted allocator. */
+typedef struct plain_image {
+    int width, height;
+    float *rgb;
+} plain_image;
+
+static bool same(const lu_image *a, const plain_image *b) {
+    return a->width == b->width && a->height == b->height && a->rgb && b->rgb &&
+           memcmp(a->rgb, b->rgb, (size_t)a->width * a->height * 3 * sizeof(float)) == 0;
+}
+
+/* Sweeps one job; returns the number of failure points tried. */
+static long sweep(const job *j, bool full) {
+    outcome o;
+    run(j, 0, &o); /* warm-up: process-wide tables built once (e.g. a bssrdf profile) stay alive */
+    CHECK_MSG(o.result == LU_OK, "%s: %s", j->method, o.message);
+    lu_image_destroy(&o.img);
+    long live0 = atomic_load(&g_live);
+    run(j, 0, &o);
+    long total = atomic_load(&g_count);
+    size_t n = (size_t)o.img.width * o.img.height * 3;
+    plain_image base = {o.img.width, o.img.height, malloc(n * sizeof(float))};
+    if (o.img.rgb && base.rgb) memcpy(base.rgb, o.img.rgb, n * sizeof(float));
+    lu_result base_result = o.result;
+    lu_image_destroy(&o.img);
+    CHECK_MSG(atomic_load(&g_live) == live0, "%s: %ld blocks alive after an unfailed job, %ld before",
+              j->method, atomic_load(&g_live), live0);
+    if (atomic_load(&g_live) != live0) print_leaks(j->method, live0);
+    if (base_result != LU_OK || !base.rgb) {
+        free(base.rgb);
+        return 0;
+    }
+
+    /* The sampled sweep: the first 24 allocations (where creation and the
+     * first buffers are), then 40 points spread evenly over the rest. */
+    long tried = 0, nomem = 0, retried = 0;
+    for (long k = 1; k <= total; k++) {
+        if (!full && k > 24 && (k - 24) % ((total - 24) / 40 + 1) != 0) continue;
+        long failed0 = atomic_load(&g_failed);
+        run(j, k, &o);
+        bool hit = atomic_load(&g_failed) > failed0;
+        tried++;
+        if (o.result != LU_OK) nomem++;
+        CHECK_MSG(o.result == LU_OK || o.result == LU_ERR_NOMEM, "%s, allocation %ld/%ld: result %d (%s)",
+                  j->method, k, total, (int)o.result, o.message);
+        CHECK_MSG(o.result == LU_OK || o.message[0], "%s, allocation %ld: failed without a message", j->method, k);
+        /* A refused allocation the job then reported as success would be an
+         * unchecked NULL that happened not to be used: only a fallback path
+         * may do that, and its image must still be right. */
+        CHECK_MSG(!hit || o.result != LU_OK || same(&o.img, &base),
+                  "%s, allocation %ld: a refused allocation, success reported, and a different image", j->method, k);
+        if (o.retried) {
+            retried++;
+            CHECK_MSG(same(&o.img, &base), "%s, allocation %ld: the renderer's image after the failure differs",
+                      j->method, k);
+        }
+        lu_image_destroy(&o.img);
+        CHECK_MSG(atomic_load(&g_live) == live0, "%s, allocation %ld/%ld: %ld blocks leaked", j->method, k, total,
+                  atomic_load(&g_live) - live0);
+        if (atomic_load(&g_live) != live0) {
+            print_leaks(j->method, live0);
+            live0 = atomic_load(&g_live); /* one report per leak */
+        }
+        if (lu_test_failures > 20) break;
+    }
+    fprintf(stderr, "  %-10s %6ld allocations, %4ld failure points: %4ld LU_ERR_NOMEM, %4ld re-rendered after a failed frame\n",
+           j->method, total, tried, nomem, retried);
+    free(base.rgb);
+    return tried;
+}
+
+static lu_scene *load(const char *name, int w, int h) {
+    static lu_scene scenes[4];
+    static int n;
+    char path[512];
+    snprintf(path, sizeof path, LU_SOURCE_DIR "/scenes/%s.json", name);
+    lu_error err = {0};
+    lu_scene *s = &scenes[n];
+    if (lu_scene_load(path, s, &err) != LU_OK) {
+        fprintf(stderr, "%s: %s\n", path, err.message);
+        exit(1);
+    }
+    n++;
+    s->camera.width = w;
+    s->camera.height = h;
+    return s;
+}
+
+int main(int argc, char **argv) {
+    bool full = argc > 1 && strcmp(argv[1], "--full") == 0;
+    lu_host host = {.alloc = t_alloc, .realloc = t_realloc, .free = t_free, .log = quiet_log, .threads = 1};
+    lu_error err = {0};
+    CHECK(lu_host_set(&host, &err) == LU_OK);
+
+    lu_scene *demo = load("demo", 24, 18);
+    lu_scene *spheres = load("bssrdf_spheres", 24, 16);
+    const job jobs[] = {
+        {"reference", "", demo},
+        {"raymarch", "", demo},
+        {"afm", "", demo},
+        {"gradient", "", demo},
+        {"pervoxel", "", demo},
+        {"rbf", "", demo},
+        {"ddod", "", spheres},
+        {"pathtrace", "pathtrace.spp=1", demo},
+        {"bssrdf", "bssrdf.splats=256", spheres},
+    };
+    long points = 0;
+    for (size_t i = 0; i < sizeof jobs / sizeof jobs[0]; i++) points += sweep(&jobs[i], full);
+    CHECK(points > 0);
+    lu_scene_destroy(demo);
+    lu_scene_destroy(spheres);
+    TEST_EXIT();
+}
