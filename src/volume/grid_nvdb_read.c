@@ -14,7 +14,9 @@
  *                 ZIP: u64 compressed size, then a zlib stream;
  *                 BLOSC: chunks (not supported here).
  * A grid kept sparse owns its buffer: the file mapped (uncompressed, 8-byte
- * aligned data) or an allocation (compressed, unaligned, or from memory). */
+ * aligned data) or an allocation (compressed, unaligned, or from memory).
+ * Over 800 lines because it is one hardened reader: every check on untrusted
+ * bytes (container, tree, values for both storages) sits in this file. */
 #include <lucent/grid.h>
 
 #include <errno.h>
