@@ -29,6 +29,6 @@ for m in $methods; do
         >"$tmp/l.out" 2>"$tmp/l.time"
     rc=$?
     a=$(rss "$tmp/l.time"); b=$(rss "$tmp/b.time")
-    msg=$(grep -h "lucent render" "$tmp/l.time" "$tmp/l.out" | tail -1)
+    msg=$(grep -h "^lucent render" "$tmp/l.time" "$tmp/l.out" | tail -1)
     printf "%-10s %12s %12s %12.1f  rc=%d %s\n" "$m" "$a" "$b" "$(echo "($a - $b) / 1024" | bc -l)" "$rc" "$msg"
 done
