@@ -18,6 +18,9 @@ static inline lu_renderer_stats lu_cli_stats(const lu_renderer *r) {
 /* Reads lucent's environment variables into the library's lu_host (the
  * library reads none): LU_EXIT_OK, or the exit code after a message. */
 int lu_cli_host_from_env(void);
+/* Whether LUCENT_THREADS chose the thread count (else a rank of a job
+ * divides its node's processors, cli/mpi.c). */
+extern bool lu_cli_threads_from_env;
 
 int lu_cmd_render(int argc, char **argv);
 int lu_cmd_compare(int argc, char **argv);

@@ -3,7 +3,8 @@
  * scene, all measured in one run (docs/architecture.md §8); parameter sweeps,
  * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c).
  * Over 800 lines: one command whose motions, sweeps, truths and rows share
- * the row table and its three output formats. */
+ * the row table and its three output formats (in a job, rows are gathered
+ * through cli/mpi.c). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -11,6 +12,7 @@
 #include <sys/stat.h>
 
 #include "cli.h"
+#include "mpi_job.h"
 
 static void usage(void) {
     printf("usage: lucent bench SCENE.json... --methods a,b,... [options]\n"
@@ -62,7 +64,11 @@ static void usage(void) {
            "first and the last timed state of each motion; when reference is among --methods\n"
            "it reuses that render rather than rendering twice. Each run also times a fixed\n"
            "yardstick (trilinear samples over a 128^3 grid on all processors) and states each\n"
-           "frame as frame time x yardstick throughput / pixels (spp_eq).\n");
+           "frame as frame time x yardstick throughput / pixels (spp_eq).\n"
+           "\n"
+           "Under mpirun or srun (a build with MPI) the ranks take whole scenes from a\n"
+           "work queue (all of a scene's rows on one rank, spp_eq by that rank's own\n"
+           "yardstick) and rank 0 prints and writes the merged table (docs/distributed.md).\n");
 }
 
 /* ---- motions ------------------------------------------------------------- */
@@ -366,6 +372,11 @@ typedef struct row {
     double spp_equiv, load_avg;
     double update_ms;       /* median time of the scene change before each timed frame (not in frame_ms) */
     double flicker;         /* --stability: mean |frame k - frame k-1| over the truth's; < 0: not measured */
+    double gsps;            /* the yardstick spp_equiv used: in a job, its rank's */
+    /* A row travels to rank 0 as bytes (cli/mpi.c); these name what its
+     * pointers point to, to point them again there. */
+    int scene_index, seq;
+    char method_name[64];
 } row;
 
 static int cmp_double(const void *a, const void *b) {
@@ -496,7 +507,7 @@ static void print_table(FILE *f, const row *rows, int n) {
     }
 }
 
-static bool write_csv(const char *path, const row *rows, int n, double gsps, lu_error *err) {
+static bool write_csv(const char *path, const row *rows, int n, lu_error *err) {
     lu_atomic_file af;
     if (lu_atomic_open(&af, path, err) != LU_OK) return false;
     FILE *f = af.fp;
@@ -515,7 +526,7 @@ static bool write_csv(const char *path, const row *rows, int n, double gsps, lu_
         fprintf(f, "%s,%s,", k_motion_names[r->motion], r->params);
         if (r->has_err) fprintf(f, "%.6g,%.6g,", r->rel_l2_first, r->rel_l2_last);
         else fprintf(f, ",,");
-        fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d,", r->last_vs_first, r->spp_equiv, gsps, r->load_avg, r->width,
+        fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d,", r->last_vs_first, r->spp_equiv, r->gsps, r->load_avg, r->width,
                 r->height, lu_thread_count());
         if (r->flicker >= 0.0) fprintf(f, "%.6g", r->flicker);
         fprintf(f, ",%.3f\n", r->update_ms);
@@ -563,7 +574,7 @@ static bool write_json(const char *path, const row *rows, int n, double gsps, do
         if (r->flicker >= 0.0) fprintf(f, ", \"flicker\": %.6g", r->flicker);
         fprintf(f, ", \"update_ms\": %.3f", r->update_ms);
         fprintf(f, ", \"rel_l2_last_vs_first\": %.6g, \"spp_equiv\": %.2f, \"yardstick_gsps\": %.4f, \"load_avg\": %.2f}%s\n",
-                r->last_vs_first, r->spp_equiv, gsps, r->load_avg, i + 1 < n ? "," : "");
+                r->last_vs_first, r->spp_equiv, r->gsps, r->load_avg, i + 1 < n ? "," : "");
     }
     fprintf(f, "]}\n");
     return lu_atomic_commit(&af, err) == LU_OK;
@@ -578,9 +589,18 @@ static void scene_stem(const char *path, char *out, size_t n) {
     if (dot && strcmp(dot, ".json") == 0) *dot = '\0';
 }
 
+static int cmp_rows(const void *a, const void *b) {
+    const row *x = a, *y = b;
+    if (x->scene_index != y->scene_index) return x->scene_index < y->scene_index ? -1 : 1;
+    return (x->seq > y->seq) - (x->seq < y->seq);
+}
+
+typedef struct bench_opts bench_opts;
+static lu_result gather_rows(const bench_opts *o, row **rows, int *nrows, lu_error *err);
+
 /* ---- the command --------------------------------------------------------- */
 
-typedef struct bench_opts {
+struct bench_opts {
     const char *scenes[MAX_SCENES];
     int nscenes;
     char *methods[MAX_METHODS];
@@ -596,7 +616,7 @@ typedef struct bench_opts {
     bool no_truth, no_yardstick, stability, time_given;
     double time;
     unsigned tracking;         /* bit 0: rows with change tracking, bit 1: rows without */
-} bench_opts;
+};
 
 static int parse_motions(const char *arg, bool *motions) {
     char buf[256];
@@ -884,6 +904,7 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     if (res == LU_OK) r->last_vs_first = d.rel_l2;
                     if (res == LU_OK) {
                         r->spp_equiv = r->median_ms * 1e-3 * gsps * 1e9 / (double)pixels;
+                        r->gsps = gsps;
                         r->load_avg = load_avg_1min();
                     }
                     if (res == LU_OK && o->img_dir) {
@@ -909,6 +930,35 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
     return res;
 }
 
+/* Every rank's rows on rank 0, in scene order (a job of one too, where it
+ * changes nothing); the other ranks keep none. */
+static lu_result gather_rows(const bench_opts *o, row **rows, int *nrows, lu_error *err) {
+    for (int i = 0; i < *nrows; i++) {
+        row *r = &(*rows)[i];
+        r->seq = i;
+        snprintf(r->method_name, sizeof r->method_name, "%s", r->method);
+    }
+    void *all;
+    size_t bytes;
+    lu_result res = lu_mpi_gather(*rows, (size_t)*nrows * sizeof(row), &all, &bytes, err);
+    if (res != LU_OK) return res;
+    *nrows = (int)(bytes / sizeof(row));
+    if (lu_mpi_rank() != 0) return LU_OK;
+    if (*nrows > MAX_ROWS) {
+        free(all);
+        return lu_fail(err, LU_ERR_LIMIT, "more than %d rows", MAX_ROWS);
+    }
+    memcpy(*rows, all, bytes);
+    free(all);
+    for (int i = 0; i < *nrows; i++) {
+        row *r = &(*rows)[i];
+        r->scene = o->scenes[r->scene_index];
+        r->method = lu_method_find(r->method_name)->name;
+    }
+    qsort(*rows, (size_t)*nrows, sizeof(row), cmp_rows);
+    return LU_OK;
+}
+
 int lu_cmd_bench(int argc, char **argv) {
     bench_opts o;
     memset(&o, 0, sizeof o);
@@ -922,9 +972,15 @@ int lu_cmd_bench(int argc, char **argv) {
         rows = calloc(MAX_ROWS, sizeof *rows);
         if (!rows) rc = lu_cli_error("bench", &(lu_error){LU_ERR_NOMEM, "out of memory"});
     }
-    /* Every output is checked before the first frame: a sweep can run for hours. */
-    if (rc == LU_EXIT_OK && o.csv) rc = lu_cli_check_output("bench", o.csv);
-    if (rc == LU_EXIT_OK && o.json) rc = lu_cli_check_output("bench", o.json);
+    /* The images are each rank's, and only rank 0 writes. */
+    if (rc == LU_EXIT_OK && lu_mpi_size() > 1 && o.img_dir)
+        rc = lu_cli_usage("bench", "--save-images: in a job of several ranks only rank 0 writes; run without it");
+    /* Every output is checked before the first frame: a sweep can run for
+     * hours. Only rank 0 writes the tables: only its file system needs
+     * their folders. */
+    bool writer = lu_mpi_rank() == 0;
+    if (rc == LU_EXIT_OK && o.csv && writer) rc = lu_cli_check_output("bench", o.csv);
+    if (rc == LU_EXIT_OK && o.json && writer) rc = lu_cli_check_output("bench", o.json);
     if (rc == LU_EXIT_OK && o.img_dir) {
         char probe[1100];
         snprintf(probe, sizeof probe, "%s/truth.exr", o.img_dir);
@@ -938,8 +994,14 @@ int lu_cmd_bench(int argc, char **argv) {
         gsps = o.no_yardstick ? 0.0 : lu_yardstick_gsps(5, &ys_threads);
         if (gsps <= 0.0 && !o.no_yardstick) rc = lu_cli_error("bench", &(lu_error){LU_ERR_NOMEM, "out of memory for the yardstick"});
     }
-    for (int s = 0; s < o.nscenes && rc == LU_EXIT_OK; s++) {
+    /* In a job, whole scenes go to the ranks from a work queue: all of a
+     * scene's rows (its truth, methods, sweeps) are timed on one rank, so
+     * they stay ratios within one run. */
+    if (rc == LU_EXIT_OK && lu_mpi_queue_open(o.nscenes, &err) != LU_OK) rc = lu_cli_error("bench", &err);
+    for (int s; rc == LU_EXIT_OK && (s = lu_mpi_queue_next()) >= 0;) {
         lu_scene scene;
+        if (lu_mpi_size() > 1)
+            fprintf(stderr, "lucent bench: rank %d of %d: %s\n", lu_mpi_rank(), lu_mpi_size(), o.scenes[s]);
         rc = lu_cli_load_scene("bench", o.scenes[s], o.width, o.height, &scene);
         if (rc != LU_EXIT_OK) break;
         if (o.time_given && lu_scene_set_time(&scene, o.time, &err) != LU_OK) {
@@ -947,10 +1009,14 @@ int lu_cmd_bench(int argc, char **argv) {
             lu_scene_destroy(&scene);
             break;
         }
+        int first = nrows;
         if (bench_scene(&o, o.scenes[s], &scene, gsps, rows, &nrows, &err) != LU_OK) rc = lu_cli_error("bench", &err);
+        for (int i = first; i < nrows; i++) rows[i].scene_index = s;
         lu_scene_destroy(&scene);
     }
-    if (rc == LU_EXIT_OK) {
+    lu_mpi_queue_close();
+    if (rc == LU_EXIT_OK && gather_rows(&o, &rows, &nrows, &err) != LU_OK) rc = lu_cli_error("bench", &err);
+    if (rc == LU_EXIT_OK && lu_mpi_rank() == 0) {
         /* Timed again at the end: the two differ when the machine's load
          * changed during the run, and then so does the meaning of spp_eq. */
         double gsps_end = o.no_yardstick ? 0.0 : lu_yardstick_gsps(5, &ys_threads);
@@ -964,7 +1030,7 @@ int lu_cmd_bench(int argc, char **argv) {
                "%.2f %.2f %.2f at the end\n",
                gsps, gsps_end, ys_threads, load0, l[0], l[1], l[2]);
         print_table(stdout, rows, nrows);
-        if (o.csv && !write_csv(o.csv, rows, nrows, gsps, &err)) rc = lu_cli_error("bench", &err);
+        if (o.csv && !write_csv(o.csv, rows, nrows, &err)) rc = lu_cli_error("bench", &err);
         if (o.json && !write_json(o.json, rows, nrows, gsps, gsps_end, ys_threads, o.scenes[0], &err))
             rc = lu_cli_error("bench", &err);
     }

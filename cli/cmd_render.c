@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "mpi_job.h"
 
 static void usage(void) {
     printf("usage: lucent render SCENE.json [options] -o OUT.{png,exr,pfm}\n"
@@ -28,12 +29,20 @@ static void usage(void) {
            "                      renderer, each to OUT with the frame number in place of its\n"
            "                      run of '#' (out_####.exr), or, without one, before the\n"
            "                      extension (out.exr -> out_0001.exr)\n"
+           "  --band-rows N       in a job of several ranks: rows per band of the work queue\n"
+           "                      (default 16, whole tiles of bssrdf and ddod); fewer rows\n"
+           "                      balance many ranks better on a long render\n"
            "  -o, --output FILE   output image; the format follows the extension\n"
            "\n"
            "Prints prepare and render times on stderr. The output folder is checked\n"
            "before the work starts. The file is written under a temporary name and\n"
            "renamed, so a failed or interrupted render (SIGINT: exit 130) leaves no\n"
-           "partial file; with --progressive-every the last complete image stays.\n");
+           "partial file; with --progressive-every the last complete image stays.\n"
+           "\n"
+           "Under mpirun or srun (a build with MPI) the ranks divide the image's rows,\n"
+           "or with --frame-range the frames, and rank 0 alone writes the output; the\n"
+           "images are the same, bit for bit (docs/distributed.md):\n"
+           "  mpirun -n 4 lucent render SCENE.json ... -o OUT\n");
 }
 
 /* --progressive-every: each partial image replaces the output file
@@ -70,12 +79,60 @@ static bool frame_path(const char *out, int f, char *dst, size_t size) {
     return true;
 }
 
+/* --frame-range: one renderer for every frame a rank renders, so the frame
+ * stage rebuilds only what each time step touches. In a job the ranks take
+ * the frames in turn (round k: frame A + k x ranks + rank); rank 0 writes
+ * its own and then each other rank's frame of the round, in frame order,
+ * so it holds two images at a time. */
+static int render_frames(lu_renderer *r, lu_scene *scene, long frame_a, long frame_b, const char *out_path,
+                         const lu_image_save_desc *save, const char *method, lu_backend backend, lu_image *img) {
+    int ranks = lu_mpi_size(), me = lu_mpi_rank();
+    lu_error err = {0};
+    lu_image other = {0};
+    lu_result res = LU_OK;
+    for (long first = frame_a; first <= frame_b && res == LU_OK; first += ranks) {
+        long f = first + me;
+        double ms = 0.0;
+        if (f <= frame_b) {
+            res = lu_scene_set_time(scene, lu_scene_frame_time(scene, (int)f), &err);
+            if (res == LU_OK) res = lu_renderer_render(r, scene, img, &err);
+            ms = lu_cli_stats(r).frame_ms;
+        }
+        for (int k = 0; k < ranks && res == LU_OK; k++) {
+            long fk = first + k;
+            if (fk > frame_b) break;
+            if (me != 0) {
+                if (k == me) res = lu_mpi_send_image(img, ms, &err);
+                continue;
+            }
+            double msk = ms;
+            const lu_image *im = img;
+            if (k != 0) {
+                res = lu_mpi_recv_image(k, &other, &msk, &err);
+                im = &other;
+            }
+            char fp[1100];
+            frame_path(out_path, (int)fk, fp, sizeof fp);
+            lu_cli_guard_output(fp);
+            if (res == LU_OK) res = lu_image_save(im, fp, save, &err);
+            char by[32] = "";
+            if (ranks > 1) snprintf(by, sizeof by, " (rank %d)", k);
+            if (res == LU_OK)
+                fprintf(stderr, "lucent render: %s (frame %ld, time %g s) %dx%d with %s on %s: render %.1f ms%s\n", fp,
+                        fk, lu_scene_frame_time(scene, (int)fk), im->width, im->height, method,
+                        lu_backend_name(backend), msk, by);
+        }
+    }
+    lu_image_destroy(&other);
+    return res == LU_OK ? LU_EXIT_OK : lu_cli_error("render", &err);
+}
+
 int lu_cmd_render(int argc, char **argv) {
     const char *scene_path = NULL, *out_path = NULL, *method = "reference";
     lu_backend backend = LU_BACKEND_CPU;
     lu_kvlist settings = {0};
     lu_image_save_desc save = {0};
-    int width = 0, height = 0, progressive_every = 0;
+    int width = 0, height = 0, progressive_every = 0, band_rows = 0;
     bool time_given = false, range_given = false;
     double time = 0.0;
     long frame_a = 0, frame_b = 0;
@@ -124,6 +181,13 @@ int lu_cmd_render(int argc, char **argv) {
                 frame_b > 1000000000L || frame_b - frame_a >= 100000)
                 rc = lu_cli_usage("render", "--frame-range takes A-B, whole frame numbers 0 <= A <= B, at most 100000 "
                                             "frames (\"%s\")", v);
+        } else if (strcmp(a, "--band-rows") == 0 && has_next) {
+            char *end;
+            long n = strtol(argv[++i], &end, 10);
+            if (*end || n < 1 || n > LU_MAX_IMAGE_DIM)
+                rc = lu_cli_usage("render", "--band-rows takes a positive integer up to %d", LU_MAX_IMAGE_DIM);
+            else
+                band_rows = (int)n;
         } else if (strcmp(a, "--half") == 0) {
             save.exr_half = true;
         } else if ((strcmp(a, "-o") == 0 || strcmp(a, "--output") == 0) && has_next) {
@@ -145,7 +209,10 @@ int lu_cmd_render(int argc, char **argv) {
         rc = lu_cli_usage("render", "--progressive-every writes one image; it does not go with --frame-range");
     if (rc == LU_EXIT_OK && lu_image_format_from_path(out_path) == LU_IMAGE_AUTO)
         rc = lu_cli_usage("render", "cannot tell the image format of \"%s\" (use .png, .exr or .pfm)", out_path);
-    if (rc == LU_EXIT_OK && range_given) {
+    /* Only the writer, rank 0 in a job, checks: only its file system needs
+     * the output folder. */
+    bool writer = lu_mpi_rank() == 0;
+    if (rc == LU_EXIT_OK && range_given && writer) {
         /* every frame's output before any work */
         for (long f = frame_a; f <= frame_b && rc == LU_EXIT_OK; f++) {
             char fp[1100];
@@ -154,7 +221,7 @@ int lu_cmd_render(int argc, char **argv) {
             else
                 rc = lu_cli_check_output("render", fp);
         }
-    } else if (rc == LU_EXIT_OK) {
+    } else if (rc == LU_EXIT_OK && writer) {
         rc = lu_cli_check_output("render", out_path);
     }
     if (rc != LU_EXIT_OK) {
@@ -183,7 +250,7 @@ int lu_cmd_render(int argc, char **argv) {
         lu_kv_free(&settings);
         return rc;
     }
-    if (!range_given) lu_cli_guard_output(out_path);
+    if (!range_given && writer) lu_cli_guard_output(out_path);
     lu_renderer *r = NULL;
     lu_image img = {0};
     progressive_sink sink = {out_path, &save};
@@ -198,31 +265,32 @@ int lu_cmd_render(int argc, char **argv) {
         cr = lu_renderer_create(method, &scene, &settings, backend, &r, &err);
     }
     bool created = cr == LU_OK;
-    if (created && progressive_every > 0 && !lu_renderer_set_progressive(r, save_partial, &sink, progressive_every))
+    if (created && progressive_every > 0 && lu_mpi_size() > 1) {
+        /* Each rank runs every pass of its own rows: no rank holds a
+         * partial image of the whole frame. */
+        if (writer) fprintf(stderr, "lucent render: --progressive-every is ignored in a job of several ranks\n");
+    } else if (created && progressive_every > 0 && !lu_renderer_set_progressive(r, save_partial, &sink, progressive_every)) {
         fprintf(stderr, "lucent render: %s renders in one pass; --progressive-every ignored\n", method);
+    }
     if (!created && range_given) {
         rc = lu_cli_error("render", &err);
     } else if (range_given) {
-        /* One renderer for every frame: the frame stage rebuilds only what
-         * the density change touches. */
-        for (long f = frame_a; f <= frame_b && rc == LU_EXIT_OK; f++) {
-            char fp[1100];
-            frame_path(out_path, (int)f, fp, sizeof fp);
-            lu_cli_guard_output(fp);
-            if (lu_scene_set_time(&scene, lu_scene_frame_time(&scene, (int)f), &err) != LU_OK ||
-                lu_renderer_render(r, &scene, &img, &err) != LU_OK || lu_image_save(&img, fp, &save, &err) != LU_OK)
-                rc = lu_cli_error("render", &err);
-            else
-                fprintf(stderr, "lucent render: %s (frame %ld, time %g s) %dx%d with %s on %s: render %.1f ms\n", fp, f,
-                        scene.time, img.width, img.height, method, lu_backend_name(backend), lu_cli_stats(r).frame_ms);
-        }
-    } else if (!created || lu_renderer_render(r, &scene, &img, &err) != LU_OK ||
-        lu_image_save(&img, out_path, &save, &err) != LU_OK) {
-        rc = lu_cli_error("render", &err);
+        rc = render_frames(r, &scene, frame_a, frame_b, out_path, &save, method, backend, &img);
     } else {
-        fprintf(stderr, "lucent render: %s %dx%d with %s on %s: prepare %.1f ms, render %.1f ms\n", out_path, img.width,
-                img.height, method, lu_backend_name(backend), lu_cli_stats(r).prepare_ms,
-                lu_cli_stats(r).frame_ms);
+        double t_job = lu_time_seconds();
+        if (!created || lu_mpi_render(r, &scene, &img, band_rows, method, &err) != LU_OK ||
+            (writer && lu_image_save(&img, out_path, &save, &err) != LU_OK)) {
+            rc = lu_cli_error("render", &err);
+        } else if (writer) {
+            /* In a job: the wall time until the whole image was on rank 0. */
+            double render_ms = lu_mpi_size() > 1 ? 1e3 * (lu_time_seconds() - t_job) : lu_cli_stats(r).frame_ms;
+            fprintf(stderr, "lucent render: %s %dx%d with %s on %s: prepare %.1f ms, render %.1f ms", out_path,
+                    img.width, img.height, method, lu_backend_name(backend), lu_cli_stats(r).prepare_ms, render_ms);
+            if (lu_mpi_size() > 1)
+                fprintf(stderr, " (%d ranks, %d thread%s each)", lu_mpi_size(), lu_thread_count(),
+                        lu_thread_count() == 1 ? "" : "s");
+            fputc('\n', stderr);
+        }
     }
     lu_renderer_destroy(r);
     lu_image_destroy(&img);

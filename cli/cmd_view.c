@@ -28,6 +28,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "view_script.h"
@@ -60,13 +61,15 @@ static void usage(void) {
            "  --frames N          frames to render with --screenshot (default 1), or the\n"
            "                      scripted frames with --script (default 8)\n"
            "  --time T            start at time T seconds (default: the scene's \"time\")\n"
-           "  --script orbit|light|play  play a scripted interaction and exit: each frame the\n"
+           "  --script orbit|light|play|soak  play a scripted interaction and exit: each frame the\n"
            "                      camera (orbit) or the first light (light) turns 4 degrees\n"
            "                      about the camera's up axis through its look-at point, or the\n"
-           "                      scene's time advances one frame, 1/fps (play); after the N\n"
+           "                      scene's time advances one frame, 1/fps (play); soak: both\n"
+           "                      turns, the next method every 20 frames and a window resize\n"
+           "                      every 60 (with --stats: resident memory per frame); after the N\n"
            "                      frames it renders with no input until the full image is\n"
            "                      shown (at most 60 s), then prints a summary line\n"
-           "  --stats FILE.csv    one row per frame: frame,ms,scale,rel_l2 (frame 0: the start\n"
+           "  --stats FILE.csv    one row per frame: frame,ms,scale,rel_l2,rss_kb (frame 0: the start\n"
            "                      view; rel_l2: of the frames showing the final view, against a\n"
            "                      fresh renderer's full image of it; empty for the others)\n"
            "\n"
@@ -145,6 +148,7 @@ typedef struct stats_row {
     float *shown;              /* the window-size linear image, while it shows the final view */
     double rel_l2;             /* < 0: not available */
     bool full;                 /* the full image: scale 1 at full quality (progressive: all passes) */
+    long rss_kb;               /* the process's resident memory after the frame (0: unknown) */
 } stats_row;
 
 enum { Q_FULL = 0, Q_MOVING = 1 };
@@ -353,11 +357,7 @@ static bool render_frame(viewer *v) {
         lu_kv_free(&s);
         if (rc != LU_OK) goto fail;
     } else {
-        if (v->need_create)
-            for (int q = 0; q < 2; q++) {
-                lu_renderer_destroy(v->rq[q]);
-                v->rq[q] = NULL;
-            }
+        if (v->need_create) destroy_renderers(v);   /* v->r is one of them: no dangling pointer if the create fails */
         v->need_create = false;
         int q = v->quality;
         if (!v->rq[q] && lu_renderer_create(m->name, &at, q == Q_MOVING ? &v->moving_settings : &v->settings,
@@ -672,6 +672,16 @@ static void step_frame(viewer *v, int by) {
     set_time(v, lu_scene_frame_time(&v->scene, lu_scene_frame_at(&v->scene, v->scene.time) + by));
 }
 
+/* The method `step` places on in the method table (Tab, Shift-Tab, the soak script). */
+static void switch_method(viewer *v, int step) {
+    int n;
+    lu_methods(&n);
+    v->method_index = (v->method_index + step) % n;
+    v->need_create = true;
+    v->have_cost[Q_FULL] = v->have_cost[Q_MOVING] = false;   /* another method: its own cost */
+    reset_accumulation(v);
+}
+
 static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods) {
     (void)scancode;
     viewer *v = g_v;
@@ -689,12 +699,7 @@ static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods)
     case GLFW_KEY_L:
         if (v->scene.light_count) v->light = (v->light + 1) % v->scene.light_count;
         break;
-    case GLFW_KEY_TAB:
-        v->method_index = (v->method_index + ((mods & GLFW_MOD_SHIFT) ? n - 1 : 1)) % n;
-        v->need_create = true;
-        v->have_cost[Q_FULL] = v->have_cost[Q_MOVING] = false;   /* another method: its own cost */
-        reset_accumulation(v);
-        break;
+    case GLFW_KEY_TAB: switch_method(v, (mods & GLFW_MOD_SHIFT) ? n - 1 : 1); break;
     case GLFW_KEY_EQUAL:
     case GLFW_KEY_KP_ADD: scale_knob(v, 2.0); break;
     case GLFW_KEY_MINUS:
@@ -790,6 +795,15 @@ static GLFWwindow *open_window(int w, int h, const char *title) {
 
 /* ---- --stats ---- */
 
+static long rss_kb(void) {
+    FILE *f = fopen("/proc/self/statm", "r");
+    long pages = 0, res = 0;
+    if (!f) return 0;
+    if (fscanf(f, "%ld %ld", &pages, &res) != 2) res = 0;
+    fclose(f);
+    return res * (sysconf(_SC_PAGESIZE) / 1024);
+}
+
 /* A row per frame; the frame's image is kept while it shows the view of the
  * last rows (a new view drops the older images: they can never be compared
  * against the final view). */
@@ -818,8 +832,10 @@ static bool stats_add(viewer *v, int frame, double ms, bool new_view) {
     *r = (stats_row){frame, ms, (double)v->img.width / v->width, progressive(v) ? NULL : malloc(n * sizeof(float)),
                      -1.0,
                      v->img.width == v->width && v->img.height == v->height && v->quality == Q_FULL &&
-                         (!progressive(v) || v->passes >= param_value(v, "pathtrace", "spp"))};
+                         (!progressive(v) || v->passes >= param_value(v, "pathtrace", "spp")),
+                     0};
     if (r->shown) memcpy(r->shown, v->shown.rgb, n * sizeof(float));
+    r->rss_kb = rss_kb();
     return true;
 }
 
@@ -854,12 +870,12 @@ static bool stats_write(const viewer *v, const char *path, lu_error *err) {
     lu_atomic_file f;
     if (lu_atomic_open(&f, path, err) != LU_OK) return false;
     FILE *fp = f.fp;
-    fprintf(fp, "frame,ms,scale,rel_l2\n");
+    fprintf(fp, "frame,ms,scale,rel_l2,rss_kb\n");
     for (int i = 0; i < v->row_count; i++) {
         const stats_row *r = &v->rows[i];
         fprintf(fp, "%d,%.3f,%.4f,", r->frame, r->ms, r->scale);
         if (r->rel_l2 >= 0.0) fprintf(fp, "%.6g", r->rel_l2);
-        fputc('\n', fp);
+        fprintf(fp, ",%ld\n", r->rss_kb);
     }
     return lu_atomic_commit(&f, err) == LU_OK;
 }
@@ -961,7 +977,7 @@ int lu_cmd_view(int argc, char **argv) {
             shot = argv[++i];
         } else if (strcmp(a, "--script") == 0 && has_next) {
             if (!lu_view_script_parse(argv[++i], &script))
-                rc = lu_cli_usage("view", "--script takes orbit, light or play (\"%s\")", argv[i]);
+                rc = lu_cli_usage("view", "--script takes orbit, light, play or soak (\"%s\")", argv[i]);
         } else if (strcmp(a, "--time") == 0 && has_next) {
             char *end;
             start_time = strtod(argv[++i], &end);
@@ -1093,6 +1109,8 @@ int lu_cmd_view(int argc, char **argv) {
     if (compare && !render_reference(&v)) fprintf(stderr, "lucent view: %s\n", v.status);
     v.fps_t0 = glfwGetTime();
     int frame = 0, shown_frames = 0, script_frame = 0;
+    int soak_refused = 0, method_count = 0;   /* soak: methods refused in a row; the table's size */
+    lu_methods(&method_count);
     double script_end = 0.0;
     bool settled = false;
     double spp_goal = progressive(&v) ? param_value(&v, "pathtrace", "spp") : 1.0;
@@ -1107,6 +1125,12 @@ int lu_cmd_view(int argc, char **argv) {
         if (scripted_step) {
             script_frame++;
             lu_view_script_apply(&v.scene, &v.cam0, v.scene.light_count ? &v.lights0[0] : NULL, script, script_frame);
+            if (script == LU_VIEW_SCRIPT_SOAK && script_frame % LU_VIEW_SOAK_METHOD_EVERY == 0) switch_method(&v, 1);
+            if (script == LU_VIEW_SCRIPT_SOAK && script_frame % LU_VIEW_SOAK_RESIZE_EVERY == 0) {
+                /* the window alternates between its size and 3/2 of it; the image keeps its size */
+                bool big = (script_frame / LU_VIEW_SOAK_RESIZE_EVERY) % 2 == 1;
+                glfwSetWindowSize(win, big ? v.width * 3 / 2 : v.width, big ? v.height * 3 / 2 : v.height);
+            }
             if (script == LU_VIEW_SCRIPT_PLAY) {
                 lu_result tr = lu_scene_set_time(&v.scene, v.time0 + lu_scene_frame_time(&v.scene, script_frame), &err);
                 if (tr != LU_OK) {
@@ -1154,6 +1178,13 @@ int lu_cmd_view(int argc, char **argv) {
                 render_ms = lu_cli_stats(v.r).frame_ms;
                 upsample(&v);
                 update_error(&v);
+                soak_refused = 0;
+            } else if (script == LU_VIEW_SCRIPT_SOAK && ++soak_refused < method_count) {
+                /* a method this scene does not suit: the next one, as Tab would */
+                switch_method(&v, 1);
+                v.status[0] = '\0';
+                v.dirty = true;
+                continue;
             } else if (script) {
                 rc = LU_EXIT_FAIL;
                 break;

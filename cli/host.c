@@ -13,6 +13,8 @@ static bool env_on(const char *name) {
     return v && *v && strcmp(v, "0") != 0;
 }
 
+bool lu_cli_threads_from_env;
+
 int lu_cli_host_from_env(void) {
     lu_host host = {0};
     lu_error err = {0};
@@ -23,6 +25,7 @@ int lu_cli_host_from_env(void) {
         fprintf(stderr, "lucent: error: %s\n", err.message);
         return LU_EXIT_USAGE;
     }
+    lu_cli_threads_from_env = threads && *threads;
     char cache[1024];
     if (lu_cache_dir_conventional(getenv("LUCENT_CACHE_DIR"), getenv("XDG_CACHE_HOME"), getenv("HOME"), cache,
                                   sizeof cache, NULL) == LU_OK)

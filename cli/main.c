@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "mpi_job.h"
 
 static const char k_usage[] =
     "usage: lucent <command> [options]\n"
@@ -24,7 +25,10 @@ static const char k_usage[] =
     "not an integer in [1, 256]), 3 a --max-* threshold exceeded.\n";
 
 int lu_cli_error(const char *cmd, const lu_error *err) {
-    fprintf(stderr, "lucent %s: error: %s\n", cmd, err->message);
+    if (lu_mpi_size() > 1)
+        fprintf(stderr, "lucent %s: error (rank %d of %d): %s\n", cmd, lu_mpi_rank(), lu_mpi_size(), err->message);
+    else
+        fprintf(stderr, "lucent %s: error: %s\n", cmd, err->message);
     return LU_EXIT_FAIL;
 }
 
@@ -123,11 +127,22 @@ int main(int argc, char **argv) {
     static const struct {
         const char *name;
         int (*fn)(int, char **);
-    } cmds[] = {{"render", lu_cmd_render}, {"compare", lu_cmd_compare}, {"bench", lu_cmd_bench},
-                {"info", lu_cmd_info},     {"methods", lu_cmd_methods}, {"profile", lu_cmd_profile},
-                {"view", lu_cmd_view},     {"export-grid", lu_cmd_export_grid}};
-    for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++)
-        if (strcmp(argv[1], cmds[i].name) == 0) return cmds[i].fn(argc - 1, argv + 1);
+        bool divides;   /* divides its work among the ranks of a job (docs/distributed.md) */
+    } cmds[] = {{"render", lu_cmd_render, true},   {"compare", lu_cmd_compare, false},
+                {"bench", lu_cmd_bench, true},     {"info", lu_cmd_info, false},
+                {"methods", lu_cmd_methods, false}, {"profile", lu_cmd_profile, false},
+                {"view", lu_cmd_view, false},      {"export-grid", lu_cmd_export_grid, false}};
+    for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++) {
+        if (strcmp(argv[1], cmds[i].name) != 0) continue;
+        int rc = lu_mpi_begin(&argc, &argv);
+        if (rc != LU_EXIT_OK) return rc;
+        if (lu_mpi_size() > 1 && !cmds[i].divides)
+            rc = lu_cli_usage(argv[1], "divides no work among the %d ranks of a job; run it without mpirun or srun",
+                              lu_mpi_size());
+        else
+            rc = cmds[i].fn(argc - 1, argv + 1);
+        return lu_mpi_end(rc);
+    }
     fprintf(stderr, "lucent: unknown command \"%s\"\n\n%s", argv[1], k_usage);
     return LU_EXIT_USAGE;
 }

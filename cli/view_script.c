@@ -9,6 +9,7 @@ bool lu_view_script_parse(const char *s, lu_view_script *out) {
     if (strcmp(s, "orbit") == 0) *out = LU_VIEW_SCRIPT_ORBIT;
     else if (strcmp(s, "light") == 0) *out = LU_VIEW_SCRIPT_LIGHT;
     else if (strcmp(s, "play") == 0) *out = LU_VIEW_SCRIPT_PLAY;
+    else if (strcmp(s, "soak") == 0) *out = LU_VIEW_SCRIPT_SOAK;
     else return false;
     return true;
 }
@@ -16,6 +17,7 @@ bool lu_view_script_parse(const char *s, lu_view_script *out) {
 const char *lu_view_script_name(lu_view_script kind) {
     return kind == LU_VIEW_SCRIPT_ORBIT ? "orbit" : kind == LU_VIEW_SCRIPT_LIGHT ? "light"
                                       : kind == LU_VIEW_SCRIPT_PLAY  ? "play"
+                                      : kind == LU_VIEW_SCRIPT_SOAK  ? "soak"
                                                                      : "none";
 }
 
@@ -24,7 +26,7 @@ bool lu_view_script_check(const lu_scene *scene, lu_view_script kind, char *why,
         snprintf(why, why_size, "nothing in the scene follows time (no sequence, no animated procedural)");
         return false;
     }
-    if (kind != LU_VIEW_SCRIPT_LIGHT) return true;
+    if (kind != LU_VIEW_SCRIPT_LIGHT && kind != LU_VIEW_SCRIPT_SOAK) return true;
     if (scene->light_count == 0) {
         snprintf(why, why_size, "the scene has no light to orbit");
         return false;
@@ -55,9 +57,9 @@ void lu_view_script_apply(lu_scene *scene, const lu_camera *camera0, const lu_li
                           int frame) {
     double a = frame * LU_VIEW_SCRIPT_DEG * 3.14159265358979323846 / 180.0;
     lu_vec3 u = lu_v3_norm(camera0->up), pivot = camera0->look_at;
-    if (kind == LU_VIEW_SCRIPT_ORBIT) {
+    if (kind == LU_VIEW_SCRIPT_ORBIT || kind == LU_VIEW_SCRIPT_SOAK)
         scene->camera.position = turn_about(camera0->position, pivot, u, a);
-    } else if (kind == LU_VIEW_SCRIPT_LIGHT && light0 && scene->light_count > 0) {
+    if ((kind == LU_VIEW_SCRIPT_LIGHT || kind == LU_VIEW_SCRIPT_SOAK) && light0 && scene->light_count > 0) {
         lu_light *l = &scene->lights[0];
         if (l->type == LU_LIGHT_POINT || l->type == LU_LIGHT_SPOT)
             l->position = turn_about(light0->position, pivot, u, a);

@@ -14,9 +14,15 @@ typedef enum lu_view_script {
     LU_VIEW_SCRIPT_LIGHT,   /* the first light orbits the camera's look_at about the camera's up axis */
     LU_VIEW_SCRIPT_PLAY,    /* the scene's time advances one frame (1 / fps) per frame; the viewer sets it
                              * (lu_scene_set_time may fail), lu_view_script_apply leaves the scene alone */
+    LU_VIEW_SCRIPT_SOAK,    /* orbit and light together; the viewer also switches to the next method every
+                             * LU_VIEW_SOAK_METHOD_EVERY frames and resizes its window every
+                             * LU_VIEW_SOAK_RESIZE_EVERY (docs/reliability.md, "Soak") */
 } lu_view_script;
 
-/* "orbit" / "light" / "play"; false for anything else. */
+#define LU_VIEW_SOAK_METHOD_EVERY 20
+#define LU_VIEW_SOAK_RESIZE_EVERY 60
+
+/* "orbit" / "light" / "play" / "soak"; false for anything else. */
 bool lu_view_script_parse(const char *s, lu_view_script *out);
 const char *lu_view_script_name(lu_view_script kind);
 /* Whether the scene can run the script; false with the reason when the light

@@ -11,6 +11,7 @@ PACKAGES=(
   libcjson-dev libfftw3-dev
   libopenvdb-dev libboost-dev
   libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libepoxy-dev libglfw3-dev xvfb xauth
+  openmpi-bin libopenmpi-dev
   nodejs npm gnuplot-nox
   glmark2-data
 )

@@ -19,6 +19,7 @@
 #include <stdalign.h>
 #include <stdatomic.h>
 #include <stddef.h>
+#include <time.h>
 
 static atomic_long g_count;   /* allocations (and reallocations) since the counter was reset */
 static atomic_long g_fail_at; /* 0: never fail */
@@ -194,6 +195,7 @@ static bool same(const lu_image *a, const plain_image *b) {
 
 /* Sweeps one job; returns the number of failure points tried. */
 static long sweep(const job *j, bool full) {
+    clock_t t0 = clock();
     outcome o;
     run(j, 0, &o); /* warm-up: process-wide tables built once (e.g. a bssrdf profile) stay alive */
     CHECK_MSG(o.result == LU_OK, "%s: %s", j->method, o.message);
@@ -214,11 +216,11 @@ static long sweep(const job *j, bool full) {
         return 0;
     }
 
-    /* The sampled sweep: the first 24 allocations (where creation and the
-     * first buffers are), then 40 points spread evenly over the rest. */
+    /* The sampled sweep: the first 16 allocations (where creation and the
+     * first buffers are), then 16 points spread evenly over the rest. */
     long tried = 0, nomem = 0, retried = 0;
     for (long k = 1; k <= total; k++) {
-        if (!full && k > 24 && (k - 24) % ((total - 24) / 40 + 1) != 0) continue;
+        if (!full && k > 16 && (k - 16) % ((total - 16) / 16 + 1) != 0) continue;
         long failed0 = atomic_load(&g_failed);
         run(j, k, &o);
         bool hit = atomic_load(&g_failed) > failed0;
@@ -246,8 +248,10 @@ static long sweep(const job *j, bool full) {
         }
         if (lu_test_failures > 20) break;
     }
-    fprintf(stderr, "  %-10s %6ld allocations, %4ld failure points: %4ld LU_ERR_NOMEM, %4ld re-rendered after a failed frame\n",
-           j->method, total, tried, nomem, retried);
+    fprintf(stderr,
+            "  %-10s %6ld allocations, %4ld failure points: %4ld LU_ERR_NOMEM, %4ld re-rendered after a failed frame"
+            " (%.1f s)\n",
+            j->method, total, tried, nomem, retried, (double)(clock() - t0) / CLOCKS_PER_SEC);
     free(base.rgb);
     return tried;
 }
@@ -280,12 +284,13 @@ int main(int argc, char **argv) {
     const job jobs[] = {
         {"reference", "", demo},
         {"raymarch", "", demo},
-        {"afm", "", demo},
+        {"afm", "afm.map_res=32", demo},
         {"gradient", "", demo},
         {"pervoxel", "", demo},
         {"rbf", "", demo},
-        {"ddod", "", spheres},
+        {"ddod", "ddod.res=16 ddod.dirs=16 ddod.samples=500", spheres},
         {"pathtrace", "pathtrace.spp=1", demo},
+        {"pathtrace", "pathtrace.spp=1", spheres},   /* refracting boundaries: the manifold next-event path */
         {"bssrdf", "bssrdf.splats=256", spheres},
     };
     long points = 0;

@@ -249,6 +249,17 @@ static void test_host(void) {
     CHECK(c.logs == logs);   /* debug only with host.debug */
     CHECK_OK(lu_host_set(NULL, &err), &err);
     CHECK(lu_thread_count() >= 1);
+    /* What lu_host_get answers, set again, changes nothing: the cache
+     * folder it points to is the library's own copy. */
+    lu_host with_cache = {.cache_dir = "/tmp/lucent-test-host-cache"};
+    CHECK_OK(lu_host_set(&with_cache, &err), &err);
+    lu_host again;
+    lu_host_get(&again);
+    CHECK_OK(lu_host_set(&again, &err), &err);
+    lu_host_get(&again);
+    CHECK_MSG(again.cache_dir && strcmp(again.cache_dir, "/tmp/lucent-test-host-cache") == 0, "cache_dir \"%s\"",
+              again.cache_dir ? again.cache_dir : "(none)");
+    CHECK_OK(lu_host_set(NULL, &err), &err);
 }
 
 int main(void) {

@@ -163,6 +163,8 @@ typedef struct lu_renderer_stats {
     uint64_t prepares;             /* prepares since make, the first included */
     unsigned changed;              /* lu_change bits the latest frame saw */
     int products;                  /* cached products; names and rebuild counts: lu_renderer_products */
+    double rows_ms;                /* the latest lu_renderer_render_rows: time in its bands of rows;
+                                    * render_ms minus this is the frame's global stages */
 } lu_renderer_stats;
 
 lu_result lu_renderer_get_stats(const lu_renderer *r, lu_renderer_stats *out, lu_error *err);
@@ -176,6 +178,23 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
 /* Creates `out` at the camera size if it is empty (width 0), else requires that size. */
 lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err);
 void lu_renderer_destroy(lu_renderer *r);
+
+/* Part of an image, for dividing one frame among processes
+ * (docs/distributed.md). A source of pixel rows: it stores the next band of
+ * rows [*y0, *y1) and returns true, or returns false when there are no more.
+ * Rows outside the image are clipped; an empty band is skipped. */
+typedef bool (*lu_rows_fn)(void *user, int *y0, int *y1);
+/* lu_renderer_render, except that the pixel stage renders only the bands
+ * `next` hands out, asking for each on the calling thread after the one
+ * before is done, until it returns false. The frame's global stages (maps,
+ * sample sets, light passes: what every pixel reads) run whole, once per
+ * call. Every row of a band holds the values lu_renderer_render would give
+ * it, bit for bit; other rows are unspecified (a method that works by tiles
+ * also fills the rest of the tiles a band meets). A progressive method
+ * runs all its passes for each band and makes no progressive calls. CPU
+ * backend only: a GPU renderer fails with LU_ERR_UNSUPPORTED. */
+lu_result lu_renderer_render_rows(lu_renderer *r, const lu_scene *scene, lu_rows_fn next, void *user, lu_image *out,
+                                  lu_error *err);
 /* Asks for the current image every `every` passes during lu_renderer_render
  * (fn NULL or every <= 0: off). Returns false if the method renders in one
  * shot (it then ignores the request). */

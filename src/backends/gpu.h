@@ -107,6 +107,14 @@ typedef struct lu_gpu_info {
  * why it failed. */
 lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err);
 void lu_gpu_context_destroy(lu_gpu_context *ctx);
+/* Fault injection, for tests (docs/reliability.md, "Faults"): llvmpipe
+ * neither fails to create a context nor loses one. CREATE: every context
+ * creation fails from now on. LOSE: the `after`-th GL check from now (1: the
+ * next) finds the current device lost, as glGetGraphicsResetStatus reports a
+ * reset; a lost device fails every later call and is not handed to new
+ * renderers (they get a fresh one). NONE clears the fault. */
+typedef enum lu_gpu_fault { LU_GPU_FAULT_NONE = 0, LU_GPU_FAULT_CREATE, LU_GPU_FAULT_LOSE } lu_gpu_fault;
+void lu_gpu_fault_inject(lu_gpu_fault fault, int after);
 /* Serialised access to the shared devices: a GL context is current on one
  * thread at a time, so the renderer wrapper runs every GPU renderer's
  * prepare, render and destroy between enter and leave (recursive). Leave

@@ -18,6 +18,8 @@ lu_result lu_set_cache_dir(const char *dir, lu_error *err) {
         g_cache_dir[0] = '\0';
         return LU_OK;
     }
+    /* lu_host_set with what lu_host_get answered passes the folder back. */
+    if (dir == g_cache_dir) return LU_OK;
     if (!*dir || strlen(dir) >= sizeof g_cache_dir)
         return lu_fail(err, LU_ERR_INVALID_ARG, "cache folder \"%s\": empty or longer than %zu bytes", dir,
                        sizeof g_cache_dir - 1);

@@ -217,3 +217,59 @@ uint64_t lu_frame_kernel_lights_changed(const lu_frame *f) {
     }
     return out;
 }
+
+/* ---- bands of rows (lu_renderer_render_rows) ---- */
+
+typedef struct band_job {
+    lu_range_fn fn;
+    void *ctx;
+    int64_t first;                   /* the band's first row (or tile) */
+} band_job;
+
+static void band_range(void *ctx, int64_t begin, int64_t end, int thread) {
+    const band_job *j = ctx;
+    j->fn(j->ctx, j->first + begin, j->first + end, thread);
+}
+
+/* The next band of rows clipped to the image, or false when the source is
+ * done. An empty or reversed band after clipping is skipped. */
+static bool next_band(const lu_frame *f, int height, int *y0, int *y1) {
+    for (;;) {
+        if (!f->rows(f->rows_user, y0, y1)) return false;
+        if (*y0 < 0) *y0 = 0;
+        if (*y1 > height) *y1 = height;
+        if (*y0 < *y1) return true;
+    }
+}
+
+void lu_frame_for_rows(const lu_frame *f, int64_t grain, lu_range_fn fn, void *ctx, const char *progress_label) {
+    int height = f->scene->camera.height;
+    if (!f->rows) {
+        lu_parallel_for(height, grain, fn, ctx, progress_label);
+        return;
+    }
+    int y0, y1;
+    while (next_band(f, height, &y0, &y1)) {
+        double t0 = lu_time_seconds();
+        band_job j = {fn, ctx, y0};
+        lu_parallel_for(y1 - y0, grain, band_range, &j, NULL);
+        if (f->rows_seconds) *f->rows_seconds += lu_time_seconds() - t0;
+    }
+}
+
+void lu_frame_for_tiles(const lu_frame *f, int tile, int tiles_x, int tiles_y, lu_range_fn fn, void *ctx) {
+    if (!f->rows) {
+        lu_parallel_for((int64_t)tiles_x * tiles_y, 1, fn, ctx, NULL);
+        return;
+    }
+    int y0, y1;
+    while (next_band(f, f->scene->camera.height, &y0, &y1)) {
+        double t0 = lu_time_seconds();
+        int ty0 = y0 / tile, ty1 = (y1 + tile - 1) / tile;
+        if (ty1 > tiles_y) ty1 = tiles_y;
+        band_job j = {fn, ctx, (int64_t)ty0 * tiles_x};
+        /* Tiles of one tile row are consecutive indices. */
+        if (ty0 < ty1) lu_parallel_for((int64_t)(ty1 - ty0) * tiles_x, 1, band_range, &j, NULL);
+        if (f->rows_seconds) *f->rows_seconds += lu_time_seconds() - t0;
+    }
+}

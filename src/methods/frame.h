@@ -45,6 +45,10 @@ struct lu_frame {
                                       * all bits when the light count changed */
     lu_frame_stats *stats;
     const lu_frame_records *rec;     /* this frame's records */
+    /* The pixel rows to render (lu_renderer_render_rows): NULL, every row. */
+    lu_rows_fn rows;
+    void *rows_user;
+    double *rows_seconds;            /* where lu_frame_for_rows adds the time its bands took */
 };
 
 /* True when a product built before (valid) must be rebuilt for this frame. */
@@ -60,6 +64,17 @@ static inline bool lu_frame_light_changed(const lu_frame *f, int l) {
 uint64_t lu_frame_kernel_lights_changed(const lu_frame *f);
 /* Counts one rebuild of the named product (read back by lu_renderer_rebuilds). */
 void lu_frame_rebuilt(const lu_frame *f, const char *product);
+
+/* A method's pixel stage: fn over image rows [begin, end) of the camera's
+ * height in parallel, or only over the bands of rows f->rows hands out
+ * (asked for on the calling thread between bands). A row's pixels must not
+ * depend on which other rows render (docs/distributed.md). progress_label
+ * as lu_parallel_for's, for the whole image only. */
+void lu_frame_for_rows(const lu_frame *f, int64_t grain, lu_range_fn fn, void *ctx, const char *progress_label);
+/* The same for a stage that works by square tiles of `tile` pixels, tiles_x
+ * to a row of tiles, indexed ty * tiles_x + tx: fn over every tile that
+ * meets a band of rows (so rows next to a band may be rendered too). */
+void lu_frame_for_tiles(const lu_frame *f, int tile, int tiles_x, int tiles_y, lu_range_fn fn, void *ctx);
 
 /* ---- the wrapper's side ---- */
 

@@ -250,6 +250,15 @@ lu_result lu_renderer_make(const lu_renderer_desc *desc, const lu_scene *scene, 
     if (r != LU_OK) {
         lu_frame_stage_destroy(rd->stage);
         lu_free(rd);
+        /* AUTO promised a working renderer, not a GPU: a device that cannot
+         * be made (or was lost while preparing) leaves the CPU. */
+        bool from_auto = !desc || desc->backend == LU_BACKEND_AUTO;
+        if (r == LU_ERR_BACKEND && from_auto && d.backend == LU_BACKEND_GPU && (m->backends & LU_BACKEND_CPU)) {
+            lu_log_msg(LU_LOG_WARNING, "lucent: %s on the GPU failed (%s); using the CPU\n", m->name, err ? err->message : "");
+            lu_renderer_desc cpu = d;
+            cpu.backend = LU_BACKEND_CPU;
+            return lu_renderer_make(&cpu, scene, out, err);
+        }
         return r;
     }
     *out = rd;
@@ -264,16 +273,34 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
     return lu_renderer_make(&d, scene, out, err);
 }
 
-static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err);
+typedef struct rows_request {
+    lu_rows_fn next;
+    void *user;
+} rows_request;
+
+static lu_result render_frame(lu_renderer *r, const lu_scene *scene, const rows_request *rows, lu_image *out,
+                              lu_error *err);
 
 lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err) {
     gpu_enter(r);
-    lu_result e = render_frame(r, scene, out, err);
+    lu_result e = render_frame(r, scene, NULL, out, err);
     gpu_leave(r);
     return e;
 }
 
-static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err) {
+lu_result lu_renderer_render_rows(lu_renderer *r, const lu_scene *scene, lu_rows_fn next, void *user, lu_image *out,
+                                  lu_error *err) {
+    if (!next) return lu_fail(err, LU_ERR_INVALID_ARG, "render rows: no source of rows (NULL)");
+    /* The GPU drivers dispatch whole images. */
+    if (r->backend != LU_BACKEND_CPU)
+        return lu_fail(err, LU_ERR_UNSUPPORTED, "%s: rendering bands of rows needs the CPU backend (this renderer is on %s)",
+                       r->method->name, lu_backend_name(r->backend));
+    rows_request q = {next, user};
+    return render_frame(r, scene, &q, out, err);
+}
+
+static lu_result render_frame(lu_renderer *r, const lu_scene *scene, const rows_request *rows, lu_image *out,
+                              lu_error *err) {
     const lu_camera *c = &scene->camera;
     if (out->width == 0) {
         lu_result e = lu_image_create(out, c->width, c->height, err);
@@ -306,8 +333,12 @@ static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *o
         frame.lights_changed = ~0ull;
     }
     r->stats.changed = frame.changed;
+    double rows_seconds = 0.0;
+    frame.rows = rows ? rows->next : NULL;
+    frame.rows_user = rows ? rows->user : NULL;
+    frame.rows_seconds = &rows_seconds;
     double t1 = lu_time_seconds();
-    lu_result e = r->progressive.fn && r->method->render_progressive
+    lu_result e = r->progressive.fn && r->method->render_progressive && !rows
                       ? r->method->render_progressive(r->state, &frame, out, &r->progressive, err)
                       : r->method->render(r->state, &frame, out, err);
     double t2 = lu_time_seconds();
@@ -315,6 +346,7 @@ static lu_result render_frame(lu_renderer *r, const lu_scene *scene, lu_image *o
     r->frames = e == LU_OK ? r->frames + 1 : 0;
     if (e == LU_OK) r->stats.frames++;
     r->stats.render_ms = 1e3 * (t2 - t1);
+    r->stats.rows_ms = 1e3 * rows_seconds;
     r->stats.frame_update_ms += 1e3 * (lu_time_seconds() - t2);
     r->stats.frame_ms = 1e3 * (lu_time_seconds() - t0);
     return e != LU_OK ? e : s;

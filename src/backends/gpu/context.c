@@ -8,6 +8,7 @@
 
 #include <dlfcn.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -342,6 +343,27 @@ static pthread_mutex_t g_devices_mu = PTHREAD_MUTEX_INITIALIZER;
 
 static lu_result context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err);
 
+static atomic_int g_fault;        /* lu_gpu_fault */
+static atomic_int g_fault_after;  /* LOSE: GL checks left before the loss */
+static _Thread_local lu_gpu_context *t_bound; /* the device this thread's GL calls go to */
+
+void lu_gpu_fault_inject(lu_gpu_fault fault, int after) {
+    atomic_store(&g_fault_after, after > 0 ? after : 1);
+    atomic_store(&g_fault, (int)fault);
+}
+
+/* Marks the device this thread uses lost and takes it out of the table, so
+ * the next create makes a fresh one; whoever holds the lost one keeps the
+ * reference until they destroy it, and every call on it fails. */
+static void mark_bound_lost(void) {
+    lu_gpu_context *ctx = t_bound;
+    if (!ctx) return;
+    pthread_mutex_lock(&g_devices_mu);
+    ctx->lost = true;
+    if (g_devices[ctx->slot] == ctx) g_devices[ctx->slot] = NULL;
+    pthread_mutex_unlock(&g_devices_mu);
+}
+
 lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err) {
     *out = NULL;
     if (pref != LU_GPU_AUTO && pref != LU_GPU_HARDWARE && pref != LU_GPU_SOFTWARE)
@@ -367,6 +389,8 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
 
 static lu_result context_create(lu_gpu_context **out, lu_gpu_device_pref pref, lu_error *err) {
     *out = NULL;
+    if (atomic_load(&g_fault) == LU_GPU_FAULT_CREATE)
+        return lu_fail(err, LU_ERR_BACKEND, "gpu: no OpenGL 4.5 context could be created (injected fault)");
     double t0 = lu_time_seconds();
     const char *client = NULL;
     lu_result r = egl_client(&client, err);
@@ -484,7 +508,7 @@ void lu_gpu_context_destroy(lu_gpu_context *ctx) {
     if (!ctx) return;
     pthread_mutex_lock(&g_devices_mu);
     bool last = --ctx->refs == 0;
-    if (last) g_devices[ctx->slot] = NULL;
+    if (last && g_devices[ctx->slot] == ctx) g_devices[ctx->slot] = NULL;
     pthread_mutex_unlock(&g_devices_mu);
     if (!last) return;
     if (eglGetCurrentContext() == ctx->context)
@@ -536,6 +560,8 @@ bool lu_gpu_context_is_current(const lu_gpu_context *ctx) { return ctx && eglGet
 
 lu_result lu_gpu_bind_context(lu_gpu_context *ctx, lu_error *err) {
     if (!ctx) return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: NULL context");
+    if (ctx->lost) return lu_fail(err, LU_ERR_BACKEND, "gpu: the GPU context was lost (a device reset)");
+    t_bound = ctx;
     if (eglGetCurrentContext() == ctx->context) return LU_OK;
     if (!eglBindAPI(EGL_OPENGL_API) ||
         !eglMakeCurrent(ctx->display, EGL_NO_SURFACE, EGL_NO_SURFACE, ctx->context))
@@ -576,6 +602,19 @@ static const char *gl_error_name(GLenum e) {
 }
 
 lu_result lu_gpu_check_gl(const char *what, lu_error *err) {
+    /* A reset shows first: after one, glGetError says nothing useful. */
+    GLenum reset = glGetGraphicsResetStatus();
+    if (reset == GL_NO_ERROR && atomic_load(&g_fault) == LU_GPU_FAULT_LOSE && atomic_fetch_sub(&g_fault_after, 1) == 1) {
+        atomic_store(&g_fault, LU_GPU_FAULT_NONE);
+        reset = GL_UNKNOWN_CONTEXT_RESET;
+    }
+    if (reset != GL_NO_ERROR) {
+        mark_bound_lost();
+        return lu_fail(err, LU_ERR_BACKEND, "gpu: %s: the GPU context was lost (%s)", what,
+                       reset == GL_GUILTY_CONTEXT_RESET     ? "a reset this context caused"
+                       : reset == GL_INNOCENT_CONTEXT_RESET ? "a reset another context caused"
+                                                            : "a reset of unknown cause");
+    }
     GLenum e = glGetError();
     if (e == GL_NO_ERROR) return LU_OK;
     while (glGetError() != GL_NO_ERROR) {

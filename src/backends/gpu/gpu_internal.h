@@ -14,6 +14,7 @@ struct lu_gpu_context {
     lu_gpu_info info;
     int refs;                /* renderers holding this device (context.c's table) */
     int slot;                /* its preference: the table's index */
+    bool lost;               /* reset (or an injected loss): every call fails; new renderers get a fresh device */
 };
 
 struct lu_gpu_program {

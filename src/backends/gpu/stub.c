@@ -13,6 +13,7 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     return LU_GPU_NO(err);
 }
 void lu_gpu_context_destroy(lu_gpu_context *ctx) {}
+void lu_gpu_fault_inject(lu_gpu_fault fault, int after) { (void)fault, (void)after; }
 void lu_gpu_serial_enter(void) {}
 void lu_gpu_serial_leave(void) {}
 bool lu_gpu_hardware_probe(char *why, size_t why_size) {

@@ -421,7 +421,6 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
         return lu_fail(err, LU_ERR_INVALID_ARG, "afm: the scene's media changed since prepare");
     st->scene = scene;
     st->out = out;
-    const lu_camera *c = &scene->camera;
     st->cam = frame->rec->cam;
     if (frame->changed & LU_CHANGE_MEDIA) st->surfaces_version++;
     for (int m = 0; m < scene->medium_count; m++) {
@@ -465,7 +464,7 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     st->kctx.cam_normals = st->mr.normals;
     st->kctx.surfaces = st->surfaces;
     st->kctx.surface_vis = st->mr.surface_vis;
-    lu_parallel_for(c->height, 1, render_rows, st, NULL);
+    lu_frame_for_rows(frame, 1, render_rows, st, NULL);
     return LU_OK;
 }
 

@@ -1266,7 +1266,7 @@ static lu_result bssrdf_render(void *state, const lu_frame *frame, lu_image *out
         r = lu_bssrdf_gpu_render(st->gpu, &f, out, err);
         if (r != LU_OK) return r;
     } else {
-        lu_parallel_for((int64_t)j.tiles_x * j.tiles_y, 1, splat_tiles, &j, NULL);
+        lu_frame_for_tiles(frame, TILE, j.tiles_x, j.tiles_y, splat_tiles, &j);
     }
     double t5 = lu_time_seconds();
     st->stats.cpu_ms = 1e3 * (cpu_seconds() - c0);

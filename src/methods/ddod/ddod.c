@@ -671,7 +671,7 @@ static lu_result ddod_render(void *state, const lu_frame *frame, lu_image *out, 
     } else {
         lu_parallel_for(st->set.count, 0, sample_range, st, NULL);
         t3 = lu_time_seconds();
-        lu_parallel_for((int64_t)st->bins.tiles_x * st->bins.tiles_y, 1, gather_tiles, st, NULL);
+        lu_frame_for_tiles(frame, TILE, st->bins.tiles_x, st->bins.tiles_y, gather_tiles, st);
     }
     double t4 = lu_time_seconds();
     st->stats.list_entries = st->bins.entries;

@@ -328,7 +328,7 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
         if (rebuild) lu_parallel_for((int64_t)nv, 256, field_range, st, NULL);
         double t1 = lu_time_seconds();
         st->stats.ms_field = 1e3 * (t1 - t0);
-        lu_parallel_for(c->height, 1, march_rows, st, NULL);
+        lu_frame_for_rows(frame, 1, march_rows, st, NULL);
         st->stats.ms_march = 1e3 * (lu_time_seconds() - t1);
         if (lu_log_enabled(LU_LOG_DEBUG)) st->stats.uncovered = uncovered_fraction(st);
     }

@@ -1231,13 +1231,15 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
         }
     }
 
-    int every = prog && prog->fn && prog->every > 0 ? prog->every : st->spp;
+    /* Bands of rows (lu_renderer_render_rows) run every pass at once: each
+     * pixel still sums its passes in pass order, so its value is the same. */
+    int every = prog && prog->fn && prog->every > 0 && !frame->rows ? prog->every : st->spp;
     atomic_store(&st->rows_done, 0);
     lu_progress_begin(&st->progress, "pathtrace", (int64_t)c->height * ((st->spp + every - 1) / every));
     for (int p0 = 0; p0 < st->spp; p0 += every) {
         st->pass_begin = p0;
         st->pass_end = p0 + every < st->spp ? p0 + every : st->spp;
-        lu_parallel_for(c->height, 1, render_rows, st, NULL);
+        lu_frame_for_rows(frame, 1, render_rows, st, NULL);
         if (prog && prog->fn && st->pass_end < st->spp) {
             resolve(st, st->pass_end);
             prog->fn(prog->user, out, st->pass_end, st->spp);

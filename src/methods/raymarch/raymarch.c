@@ -120,7 +120,6 @@ static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu
         return lu_fail(err, LU_ERR_INVALID_ARG, "raymarch: the scene's media changed since prepare");
     st->scene = scene;
     st->out = out;
-    const lu_camera *c = &scene->camera;
     st->cam = frame->rec->cam;
     const lu_k_light *kl = frame->rec->lights;
     int nl = frame->rec->light_count;
@@ -134,7 +133,7 @@ static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu
     lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl, st->t_cut);
     if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, frame->rec, f, out, err);
     st->kctx = (struct lu_k_ctx){LU_K_CTX_SCENE(scene, frame->rec), f, st->mr.views};
-    lu_parallel_for(c->height, 1, render_rows, st, NULL);
+    lu_frame_for_rows(frame, 1, render_rows, st, NULL);
     return LU_OK;
 }
 

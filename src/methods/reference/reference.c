@@ -632,13 +632,12 @@ static lu_result ref_render(void *state, const lu_frame *frame, lu_image *out, l
     st->out = out;
     st->overflow = false;
     st->nomem = false;
-    const lu_camera *c = &scene->camera;
     st->cam = frame->rec->cam;
     lu_free(st->klights);
     st->klights = lu_calloc((size_t)(scene->light_count ? scene->light_count : 1), sizeof *st->klights);
     if (!st->klights) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
     for (int l = 0; l < scene->light_count; l++) st->klights[l] = lu_light_to_kernel(&scene->lights[l]);
-    lu_parallel_for(c->height, 1, render_rows, st, "reference");
+    lu_frame_for_rows(frame, 1, render_rows, st, "reference");
     if (st->nomem) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory (a ray's transmittance pieces)");
     if (st->overflow)
         return lu_fail(err, LU_ERR_LIMIT, "reference: a ray crossed more than %d boundary faces", MAX_CROSSINGS);

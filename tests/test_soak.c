@@ -1,0 +1,177 @@
+/* Soak (docs/reliability.md, "Soak"): one renderer per CPU method renders
+ * many frames while the camera orbits and the first light turns, every
+ * frame a change the frame stage must act on. Two figures are sampled:
+ *   - the bytes the library holds through the host allocator (lu_host),
+ *     counted exactly by this allocator: after the warm-up frames they
+ *     must not grow at all (a per-frame buffer that is not reused shows
+ *     here at once);
+ *   - the process's resident memory (/proc/self/statm), which also sees
+ *     Embree, FFTW and the C library: growth after warm-up <= 5 %.
+ * Default (the suite): 40 frames per method at 64x36. `make soak` runs
+ * `test_soak --frames 1000 --size 160x90 --csv FILE` (a row per frame and
+ * method: method,frame,lib_bytes,rss_kb), which docs/reliability.md plots. */
+#include "lu_test.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stddef.h>
+
+#define WARMUP 10
+
+typedef union header {
+    size_t size;
+    max_align_t align;
+} header;
+
+static atomic_llong g_bytes;
+
+static void *s_alloc(size_t size, void *user) {
+    (void)user;
+    header *h = malloc(sizeof(header) + size);
+    if (!h) return NULL;
+    h->size = size;
+    atomic_fetch_add(&g_bytes, (long long)size);
+    return h + 1;
+}
+
+static void *s_realloc(void *ptr, size_t size, void *user) {
+    if (!ptr) return s_alloc(size, user);
+    header *h = (header *)ptr - 1;
+    size_t old = h->size;
+    header *n = realloc(h, sizeof(header) + size);
+    if (!n) return NULL;
+    n->size = size;
+    atomic_fetch_add(&g_bytes, (long long)size - (long long)old);
+    return n + 1;
+}
+
+static void s_free(void *ptr, void *user) {
+    (void)user;
+    if (!ptr) return;
+    header *h = (header *)ptr - 1;
+    atomic_fetch_sub(&g_bytes, (long long)h->size);
+    free(h);
+}
+
+static void quiet_log(lu_log_level level, const char *message, void *user) {
+    (void)level, (void)message, (void)user;
+}
+
+static long rss_kb(void) {
+    FILE *f = fopen("/proc/self/statm", "r");
+    long pages = 0, res = 0;
+    if (!f) return 0;
+    if (fscanf(f, "%ld %ld", &pages, &res) != 2) res = 0;
+    fclose(f);
+    return res * (sysconf(_SC_PAGESIZE) / 1024);
+}
+
+/* Rodrigues' turn of v about the unit axis u. */
+static lu_vec3 turn(lu_vec3 v, lu_vec3 u, float a) {
+    float c = cosf(a), s = sinf(a), d = lu_v3_dot(u, v);
+    return lu_v3_add(lu_v3_add(lu_v3_scale(v, c), lu_v3_scale(lu_v3_cross(u, v), s)), lu_v3_scale(u, d * (1 - c)));
+}
+
+typedef struct job {
+    const char *method, *scene, *settings;
+} job;
+
+static void soak(const job *j, int frames, int w, int h, FILE *csv) {
+    char path[512];
+    snprintf(path, sizeof path, LU_SOURCE_DIR "/scenes/%s.json", j->scene);
+    lu_error err = {0};
+    lu_scene s;
+    if (lu_scene_load(path, &s, &err) != LU_OK) {
+        CHECK_MSG(false, "%s: %s", path, err.message);
+        return;
+    }
+    s.camera.width = w;
+    s.camera.height = h;
+    lu_kvlist kv = {0};
+    char buf[256];
+    snprintf(buf, sizeof buf, "%s", j->settings);
+    lu_result res = LU_OK;
+    for (char *tok = strtok(buf, " "); tok && res == LU_OK; tok = strtok(NULL, " "))
+        res = lu_kv_parse_assignment(&kv, tok, &err);
+    lu_renderer *r = NULL;
+    if (res == LU_OK) res = lu_renderer_create(j->method, &s, &kv, LU_BACKEND_CPU, &r, &err);
+    lu_camera cam0 = s.camera;
+    lu_light light0 = s.light_count ? s.lights[0] : (lu_light){0};
+    lu_vec3 up = lu_v3_norm(cam0.up);
+    long long bytes_warm = 0, bytes_max = 0;
+    long rss_warm = 0, rss_max = 0;
+    lu_image img = {0};
+    for (int f = 0; f < frames && res == LU_OK; f++) {
+        float a = 0.02f * (float)f;
+        s.camera.position = lu_v3_add(cam0.look_at, turn(lu_v3_sub(cam0.position, cam0.look_at), up, a));
+        if (s.light_count && s.lights[0].type != LU_LIGHT_ENVIRONMENT) {
+            s.lights[0].position = lu_v3_add(cam0.look_at, turn(lu_v3_sub(light0.position, cam0.look_at), up, -a));
+            s.lights[0].direction = turn(light0.direction, up, -a);
+        }
+        res = lu_renderer_render(r, &s, &img, &err);
+        long long b = atomic_load(&g_bytes);
+        long rss = rss_kb();
+        if (csv) fprintf(csv, "%s,%d,%lld,%ld\n", j->method, f, b, rss);
+        if (f == WARMUP - 1) bytes_warm = b, rss_warm = rss;
+        if (f >= WARMUP) {
+            if (b > bytes_max) bytes_max = b;
+            if (rss > rss_max) rss_max = rss;
+        }
+    }
+    CHECK_MSG(res == LU_OK, "%s: %s", j->method, err.message);
+    if (res == LU_OK && frames > WARMUP) {
+        CHECK_MSG(bytes_max <= bytes_warm, "%s: the library's memory grew from %lld to %lld bytes after warm-up",
+                  j->method, bytes_warm, bytes_max);
+        CHECK_MSG(rss_max <= rss_warm + rss_warm / 20, "%s: resident memory grew from %ld to %ld kB after warm-up",
+                  j->method, rss_warm, rss_max);
+        fprintf(stderr, "  %-10s %4d frames: library %lld bytes (max after warm-up %lld), resident %ld kB (max %ld, %+.2f %%)\n",
+                j->method, frames, bytes_warm, bytes_max, rss_warm, rss_max,
+                100.0 * (double)(rss_max - rss_warm) / (double)(rss_warm ? rss_warm : 1));
+    }
+    lu_image_destroy(&img);
+    lu_renderer_destroy(r);
+    lu_kv_free(&kv);
+    lu_scene_destroy(&s);
+}
+
+int main(int argc, char **argv) {
+    int frames = 40, w = 64, h = 36;
+    const char *csv_path = NULL;
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--frames") == 0 && i + 1 < argc) frames = atoi(argv[++i]);
+        else if (strcmp(argv[i], "--size") == 0 && i + 1 < argc) {
+            if (sscanf(argv[++i], "%dx%d", &w, &h) != 2) return 2;
+        } else if (strcmp(argv[i], "--csv") == 0 && i + 1 < argc) csv_path = argv[++i];
+        else {
+            fprintf(stderr, "usage: test_soak [--frames N] [--size WxH] [--csv FILE]\n");
+            return 2;
+        }
+    }
+    if (frames <= WARMUP || w < 1 || h < 1) {
+        fprintf(stderr, "test_soak: --frames must exceed %d and --size be positive\n", WARMUP);
+        return 2;
+    }
+    lu_host host = {.alloc = s_alloc, .realloc = s_realloc, .free = s_free, .log = quiet_log};
+    lu_error err = {0};
+    CHECK(lu_host_set(&host, &err) == LU_OK);
+    FILE *csv = csv_path ? fopen(csv_path, "w") : NULL;
+    if (csv_path && !csv) {
+        fprintf(stderr, "test_soak: cannot write %s\n", csv_path);
+        return 2;
+    }
+    if (csv) fprintf(csv, "method,frame,lib_bytes,rss_kb\n");
+    const job jobs[] = {
+        {"reference", "demo", ""},
+        {"raymarch", "demo", ""},
+        {"afm", "demo", "afm.map_res=64"},
+        {"gradient", "demo", ""},
+        {"pervoxel", "demo", ""},
+        {"rbf", "demo", ""},
+        {"ddod", "bssrdf_spheres", "ddod.res=32 ddod.dirs=32 ddod.samples=2000 ddod.cache=0"},
+        {"pathtrace", "demo", "pathtrace.spp=1"},
+        {"bssrdf", "bssrdf_spheres", "bssrdf.splats=1024"},
+    };
+    for (size_t i = 0; i < sizeof jobs / sizeof jobs[0]; i++) soak(&jobs[i], frames, w, h, csv);
+    if (csv) fclose(csv);
+    TEST_EXIT();
+}
