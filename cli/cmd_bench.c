@@ -209,6 +209,11 @@ static lu_result motion_begin(motion_state *ms, motion kind, lu_scene *scene, in
             return LU_OK;
         }
         const lu_grid *g = ms->grid;
+        if (lu_grid_is_sparse(g))
+            return lu_fail(err, LU_ERR_UNSUPPORTED,
+                           "bench: --motion medium edits the density, and grid \"%s\" is sparse (read-only); give "
+                           "the scene's file density \"storage\": \"dense\"",
+                           g->name);
         size_t n = (size_t)g->nx * g->ny * g->nz;
         ms->base = malloc(n * sizeof *ms->base);
         if (!ms->base) return lu_fail(err, LU_ERR_NOMEM, "bench: out of memory copying the grid");

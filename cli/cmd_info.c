@@ -42,6 +42,13 @@ static void print_grid(const char *indent, const lu_grid *g, const lu_affine *in
     printf("%sgrid      \"%s\" %d x %d x %d voxels\n", indent, g->name, g->nx, g->ny, g->nz);
     printf("%svoxel     %.6g x %.6g x %.6g\n", indent, lu_v3_len(vx), lu_v3_len(vy), lu_v3_len(vz));
     printf("%svalues    [%.6g, %.6g]\n", indent, g->min_value, g->max_value);
+    uint64_t dense = (uint64_t)g->nx * (uint64_t)g->ny * (uint64_t)g->nz * sizeof(float);
+    if (lu_grid_is_sparse(g))
+        printf("%sstorage   sparse: %llu-byte NanoVDB tree (the dense box would take %llu bytes)\n", indent,
+               (unsigned long long)lu_grid_storage_bytes(g), (unsigned long long)dense);
+    else
+        printf("%sstorage   dense: %llu bytes\n", indent, (unsigned long long)dense);
+    printf("%sactive    %llu voxels\n", indent, (unsigned long long)lu_grid_active_voxels(g));
     print_box(indent, lu_aabb_transform(index_to_world, lu_grid_index_support(g)));
 }
 

@@ -1,9 +1,10 @@
 # Embeds kernel headers and shaders into a C file, so the library never reads
 # the source tree at run time:
-#   cmake -DSRC_ROOT=<repo>/src -DOUT=<file.c> -DFILES="a;b;..." -P embed_sources.cmake
+#   cmake -DSRC_ROOT=<repo>/src -DOUT=<file.c> -DFILES="a;b;..." [-DEXTRA_ROOT=<dir> -DEXTRA="c;..."] -P embed_sources.cmake
 # Each file becomes a byte array (hex: no escaping pitfalls, trigraphs, or
 # string-literal length limits) named in a table by its path relative to
-# SRC_ROOT.
+# SRC_ROOT; EXTRA files (installed headers the kernels include, such as
+# nanovdb/PNanoVDB.h) are named by their path relative to EXTRA_ROOT.
 cmake_minimum_required(VERSION 3.20)
 if(NOT SRC_ROOT OR NOT OUT)
   message(FATAL_ERROR "embed_sources.cmake: SRC_ROOT and OUT are required")
@@ -11,12 +12,19 @@ endif()
 
 set(files ${FILES})
 list(SORT files)
+foreach(f IN LISTS EXTRA)
+  list(APPEND files "${EXTRA_ROOT}/${f}")
+endforeach()
 set(arrays "")
 set(table "")
 set(seen "")
 set(i 0)
 foreach(f IN LISTS files)
-  file(RELATIVE_PATH rel "${SRC_ROOT}" "${f}")
+  if(EXTRA_ROOT AND f MATCHES "^${EXTRA_ROOT}/")
+    file(RELATIVE_PATH rel "${EXTRA_ROOT}" "${f}")
+  else()
+    file(RELATIVE_PATH rel "${SRC_ROOT}" "${f}")
+  endif()
   if(NOT rel MATCHES "^[A-Za-z0-9_][A-Za-z0-9_./-]*$")
     message(FATAL_ERROR "embed_sources.cmake: ${f}: name must be [A-Za-z0-9_./-] under ${SRC_ROOT}")
   endif()

@@ -80,7 +80,9 @@ static void test_embedded_sources(void) {
     check_dir("kernels", &found);
     check_dir("methods", &found);
     CHECK(found >= 20);
-    CHECK(found == lu_gpu_embedded_source_count);
+    /* plus the one installed header the kernels include (lu_grid_tree.h) */
+    CHECK(lu_gpu_source_find("nanovdb/PNanoVDB.h") != NULL);
+    CHECK(found + 1 == lu_gpu_embedded_source_count);
     CHECK(lu_gpu_source_find("kernels/lu_kernel.h") != NULL);
     CHECK(lu_gpu_source_find("kernels/kernel_selftest.comp") != NULL);
     CHECK(lu_gpu_source_find("methods/afm/afm_build.comp") != NULL);

@@ -64,7 +64,7 @@ static float rnd(float lo, float hi) {
     return lo + (hi - lo) * (float)((g_rng >> 40) / 16777216.0);
 }
 
-static lu_scene g_scene;
+static lu_scene g_scene, g_sparse;
 
 static void test_records(void) {
     const lu_scene *s = &g_scene;
@@ -85,8 +85,7 @@ static void test_records(void) {
     CHECK(c.constant == 1 && c.bounded == 1 && c.density_scale == 0.7f);
 }
 
-static void test_gpu_matches_cpu(void) {
-    const lu_scene *s = &g_scene;
+static void gpu_matches_cpu(const lu_scene *s, const char *defines) {
     lu_error err;
     lu_gpu_context *ctx = NULL;
     /* No skip: a machine that cannot make a context fails this test. */
@@ -96,7 +95,7 @@ static void test_gpu_matches_cpu(void) {
     CHECK_OK(lu_gpu_scene_create(ctx, s, &gs, &err), &err);
     lu_gpu_source overlay = {"shaders/test_gpu_scene.comp", k_shader};
     lu_gpu_program *prog = NULL;
-    CHECK_OK(lu_gpu_program_create_ex(ctx, "shaders/test_gpu_scene.comp", NULL, &overlay, 1, &prog, &err), &err);
+    CHECK_OK(lu_gpu_program_create_ex(ctx, "shaders/test_gpu_scene.comp", defines, &overlay, 1, &prog, &err), &err);
     enum { N = 512 };
     static float rays[N * 8], out[N * 4];
     lu_aabb wb = s->media[0].bounds;
@@ -165,6 +164,21 @@ static void test_gpu_matches_cpu(void) {
     lu_gpu_context_destroy(ctx);
 }
 
+static void test_gpu_matches_cpu(void) { gpu_matches_cpu(&g_scene, lu_gpu_scene_defines(&g_scene)); }
+
+/* The same grid as a sparse tree read in place on both sides (lu_grid_tree.h
+ * in GLSL from the header buffer, in C from the mapped file): the same
+ * bounds. */
+static void test_gpu_sparse_matches_cpu(void) {
+    CHECK(lu_grid_is_sparse(&g_sparse.media[0].grid));
+    /* small enough for a texture: the tree path is forced */
+    CHECK(strcmp(lu_gpu_scene_defines(&g_sparse), "") == 0);
+    lu_gpu_scene_set_dense_limit(0);
+    CHECK(strstr(lu_gpu_scene_defines(&g_sparse), "LU_SCENE_TREES") != NULL);
+    gpu_matches_cpu(&g_sparse, lu_gpu_scene_defines(&g_sparse));
+    lu_gpu_scene_set_dense_limit(256ull << 20);
+}
+
 int main(void) {
     lu_error err;
     CHECK_OK(lu_scene_load_string(k_scene, "gpu_scene_test.json", &g_scene, &err), &err);
@@ -177,6 +191,22 @@ int main(void) {
             TEST_EXIT_SKIPPED("built without the GPU backend");
         }
         RUN_TEST(test_gpu_matches_cpu);
+        /* medium 0 written as .nvdb and loaded sparse, in the same place */
+        char path[512], json[4096];
+        snprintf(path, sizeof path, "%s/test_gpu_scene_sparse.nvdb", LU_BINARY_DIR);
+        lu_grid g = g_scene.media[0].grid;
+        g.index_to_world = g_scene.media[0].index_to_world;
+        CHECK_OK(lu_grid_save_nvdb(&g, path, &err), &err);
+        const char *at = strstr(k_scene, "{\"procedural\": \"fbm_cloud\""), *end = at ? strchr(at, '}') : NULL;
+        if (at && end) {
+            snprintf(json, sizeof json, "%.*s{\"file\": \"%s\"}%s", (int)(at - k_scene), k_scene, path, end + 1);
+            const char *tr = strstr(json, "\"transform\"");
+            if (tr) memmove((char *)tr, strstr(tr, "}") + 2, strlen(strstr(tr, "}") + 2) + 1);
+            CHECK_OK(lu_scene_load_string(json, "gpu_scene_sparse.json", &g_sparse, &err), &err);
+            if (g_sparse.medium_count == 2) RUN_TEST(test_gpu_sparse_matches_cpu);
+            lu_scene_destroy(&g_sparse);
+        }
+        remove(path);
     }
     lu_scene_destroy(&g_scene);
     TEST_EXIT();

@@ -70,6 +70,16 @@ static uint32_t tree_u32(const unsigned char *file, size_t field) {
 #define TREE_TILE_COUNT_LEAF 44  /* active tiles in lower nodes (8^3 each) */
 #define TREE_TILE_COUNT_LOWER 48 /* active tiles in upper nodes (128^3 each) */
 
+/* The tests of this file read the dense expansion (g.data); sparse storage,
+ * the default, is held to it in test_grid_sparse.c. */
+static lu_result load_nvdb_dense(const char *path, const char *name, lu_grid *g, lu_error *err) {
+    return lu_grid_load_nvdb_as(path, name, LU_GRID_STORAGE_DENSE, g, err);
+}
+static lu_result load_nvdb_memory_dense(const void *data, size_t size, const char *label, const char *name, lu_grid *g,
+                                        lu_error *err) {
+    return lu_grid_load_nvdb_memory_as(data, size, label, name, LU_GRID_STORAGE_DENSE, g, err);
+}
+
 static bool same_grid_values(const lu_grid *a, const lu_grid *b) {
     if (a->nx != b->nx || a->ny != b->ny || a->nz != b->nz) return false;
     return memcmp(a->data, b->data, (size_t)a->nx * a->ny * a->nz * sizeof(float)) == 0;
@@ -326,7 +336,7 @@ static void test_nvdb_roundtrip(void) {
     snprintf(g.name, sizeof g.name, "dust");
     CHECK_OK(lu_grid_save_nvdb(&g, path, &err), &err);
     lu_grid h;
-    CHECK_OK(lu_grid_load_nvdb(path, NULL, &h, &err), &err);
+    CHECK_OK(load_nvdb_dense(path, NULL, &h, &err), &err);
     CHECK(h.nx == 24 && h.ny == 20 && h.nz == 16);
     CHECK(same_grid_values(&g, &h));
     CHECK(strcmp(h.name, "dust") == 0);
@@ -337,13 +347,13 @@ static void test_nvdb_roundtrip(void) {
     CHECK(h.min_value == g.min_value && h.max_value == g.max_value);
     lu_grid_destroy(&h);
     /* By name, and from memory. */
-    CHECK_OK(lu_grid_load_nvdb(path, "dust", &h, &err), &err);
+    CHECK_OK(load_nvdb_dense(path, "dust", &h, &err), &err);
     CHECK(same_grid_values(&g, &h));
     lu_grid_destroy(&h);
     unsigned char *file = NULL;
     size_t n = 0;
     CHECK(read_all(path, &file, &n));
-    CHECK_OK(lu_grid_load_nvdb_memory(file, n, "mem.nvdb", "", &h, &err), &err);
+    CHECK_OK(load_nvdb_memory_dense(file, n, "mem.nvdb", "", &h, &err), &err);
     CHECK(same_grid_values(&g, &h));
     lu_grid_destroy(&h);
     /* The container metadata matches the documented layout: grid type 1
@@ -384,7 +394,7 @@ static void test_nvdb_crop(void) {
     CHECK_OK(lu_grid_procedural("sphere", &kv, &g, "test", &err), &err);
     lu_kv_free(&kv);
     CHECK_OK(lu_grid_save_nvdb(&g, path, &err), &err);
-    CHECK_OK(lu_grid_load_nvdb(path, NULL, &h, &err), &err);
+    CHECK_OK(load_nvdb_dense(path, NULL, &h, &err), &err);
     /* Active box from the data itself. */
     int lo[3] = {g.nx, g.ny, g.nz}, hi[3] = {-1, -1, -1};
     for (int z = 0; z < g.nz; z++)
@@ -446,7 +456,7 @@ static void test_nvdb_tiles(void) {
         CHECK(tiles[2] == 18);
         free(out);
     }
-    CHECK_OK(lu_grid_load_nvdb(path, NULL, &h, &err), &err);
+    CHECK_OK(load_nvdb_dense(path, NULL, &h, &err), &err);
     /* x < 4 is inactive, so the loaded box starts at x = 4. */
     CHECK(h.nx == 36 && h.ny == 32 && h.nz == 24);
     bool same = true;
@@ -466,7 +476,7 @@ static void test_nvdb_tiles(void) {
     CHECK(tree_u32(file, TREE_TILE_COUNT_LOWER) == 1);
     CHECK(tree_u32(file, TREE_NODE_COUNT_LEAF) == 0);
     free(file);
-    CHECK_OK(lu_grid_load_nvdb(path, NULL, &h, &err), &err);
+    CHECK_OK(load_nvdb_dense(path, NULL, &h, &err), &err);
     CHECK(same_grid_values(&g, &h));
     lu_grid_destroy(&h);
     lu_grid_destroy(&g);
@@ -482,7 +492,7 @@ static void test_nvdb_zip(void) {
     lu_grid g = make_dusty(20, 12, 10), a, b;
     CHECK_OK(lu_grid_save_nvdb(&g, plain, &err), &err);
     CHECK_OK(lu_nvdb_save_dense(&g, zip, LU_NVDB_CODEC_ZIP, &err), &err);
-    CHECK_OK(lu_grid_load_nvdb(zip, NULL, &a, &err), &err);
+    CHECK_OK(load_nvdb_dense(zip, NULL, &a, &err), &err);
     CHECK(same_grid_values(&g, &a));
     lu_grid_destroy(&a);
     if (has_tool("nanovdb_print")) {
@@ -504,18 +514,18 @@ static void test_nvdb_zip(void) {
     put64(out + 16 + 8, 8 + (uint64_t)csize);
     put64(out + off, (uint64_t)csize);
     CHECK(write_all(handmade, out, off + 8 + csize));
-    CHECK_OK(lu_grid_load_nvdb(handmade, NULL, &b, &err), &err);
+    CHECK_OK(load_nvdb_dense(handmade, NULL, &b, &err), &err);
     CHECK(same_grid_values(&g, &b));
     lu_grid_destroy(&b);
     /* Corrupt stream, and a size claim beyond what deflate can expand to. */
     out[off + 8 + csize / 2] ^= 0xff;
     out[off + 8 + csize / 2 + 1] ^= 0x5a;
     CHECK(write_all(handmade, out, off + 8 + csize));
-    CHECK(lu_grid_load_nvdb(handmade, NULL, &b, &err) == LU_ERR_FORMAT);
+    CHECK(load_nvdb_dense(handmade, NULL, &b, &err) == LU_ERR_FORMAT);
     CHECK(strstr(err.message, handmade) != NULL);
     put64(out + 16, (uint64_t)csize * 2000u);
     CHECK(write_all(handmade, out, off + 8 + csize));
-    CHECK(lu_grid_load_nvdb(handmade, NULL, &b, &err) == LU_ERR_FORMAT);
+    CHECK(load_nvdb_dense(handmade, NULL, &b, &err) == LU_ERR_FORMAT);
     CHECK(strstr(err.message, "more than zlib can produce") != NULL);
     free(out);
     free(file);
@@ -554,7 +564,7 @@ static void test_nvdb_converted(void) {
     CHECK_OK(gen_sphere_for_convert(&g, &err), &err);
     CHECK_OK(lu_grid_save_nvdb(&g, src, &err), &err);
     lu_grid ref;
-    CHECK_OK(lu_grid_load_nvdb(src, NULL, &ref, &err), &err);
+    CHECK_OK(load_nvdb_dense(src, NULL, &ref, &err), &err);
     char cmd[4096];
     snprintf(cmd, sizeof cmd,
              "nanovdb_convert -f '%s' '%s' >/dev/null 2>&1 && nanovdb_convert -f '%s' '%s' >/dev/null 2>&1 && "
@@ -562,7 +572,7 @@ static void test_nvdb_converted(void) {
              src, vdb, vdb, out[0], vdb, out[1], vdb, out[2]);
     CHECK(system(cmd) == 0);
     for (int i = 0; i < 2; i++) {
-        CHECK_OK(lu_grid_load_nvdb(out[i], "sphere", &h, &err), &err);
+        CHECK_OK(load_nvdb_dense(out[i], "sphere", &h, &err), &err);
         CHECK(same_grid_values(&ref, &h));
         bool map_same = true;
         for (int r = 0; r < 3; r++)
@@ -571,7 +581,7 @@ static void test_nvdb_converted(void) {
         CHECK(map_same);
         lu_grid_destroy(&h);
     }
-    CHECK(lu_grid_load_nvdb(out[2], NULL, &h, &err) == LU_ERR_UNSUPPORTED);
+    CHECK(load_nvdb_dense(out[2], NULL, &h, &err) == LU_ERR_UNSUPPORTED);
     CHECK(strstr(err.message, "BLOSC") && strstr(err.message, out[2]));
     lu_grid_destroy(&ref);
     lu_grid_destroy(&g);
@@ -582,7 +592,7 @@ static void test_nvdb_converted(void) {
 
 static lu_result load_bytes(const unsigned char *data, size_t n, const char *path, lu_grid *g, lu_error *err) {
     if (!write_all(path, data, n)) return LU_ERR_IO;
-    return lu_grid_load_nvdb(path, NULL, g, err);
+    return load_nvdb_dense(path, NULL, g, err);
 }
 
 static bool msg_has_offset(const lu_error *err, const char *path, unsigned long long off) {
@@ -681,7 +691,7 @@ static void test_nvdb_malformed(void) {
     CHECK(load_bytes(copy, n, bad, &h, &err) == LU_ERR_FORMAT);
     CHECK_MSG(msg_has_offset(&err, bad, slot) && strstr(err.message, "child pointer"), "%s", err.message);
     /* Nonexistent file. */
-    CHECK(lu_grid_load_nvdb("does/not/exist.nvdb", NULL, &h, &err) == LU_ERR_IO);
+    CHECK(load_nvdb_dense("does/not/exist.nvdb", NULL, &h, &err) == LU_ERR_IO);
 
     /* Random byte flips: always a clean result, never a crash (ASan). */
     int ok = 0, failed = 0;
@@ -694,7 +704,7 @@ static void test_nvdb_malformed(void) {
             s = s * 1103515245u + 12345u;
             copy[at] ^= (unsigned char)(1u << ((s >> 20) & 7u));
         }
-        lu_result r = lu_grid_load_nvdb_memory(copy, n, "flip", NULL, &h, &err);
+        lu_result r = load_nvdb_memory_dense(copy, n, "flip", NULL, &h, &err);
         if (r == LU_OK) {
             ok++;
             bool valid = true;
@@ -704,6 +714,28 @@ static void test_nvdb_malformed(void) {
         } else {
             failed++;
             CHECK(r > LU_OK && r < LU_ERR_COUNT && strstr(err.message, "flip"));
+        }
+        /* The sparse load checks the same values in the tree: the same answer,
+         * and every voxel it reads valid. */
+        lu_grid t;
+        lu_result rs = lu_grid_load_nvdb_memory(copy, n, "flip", NULL, &t, &err);
+        CHECK_MSG(rs == r || (r == LU_ERR_LIMIT && rs == LU_OK), "dense %s, sparse %s", lu_result_name(r),
+                  lu_result_name(rs));
+        if (rs == LU_OK) {
+            /* A flip may widen the box far beyond the file's grid: every
+             * voxel of a small box, else a lattice of 2^18 through it. */
+            bool valid = true;
+            int step[3] = {1, 1, 1}, n3[3] = {t.nx, t.ny, t.nz};
+            for (int a = 0; a < 3; a++)
+                while (n3[a] / step[a] > 64) step[a] *= 2;
+            for (int z = 0; z < t.nz; z += step[2])
+                for (int y = 0; y < t.ny; y += step[1])
+                    for (int x = 0; x < t.nx && valid; x += step[0]) {
+                        float v = lu_grid_at(&t, x, y, z);
+                        valid = isfinite(v) && v >= 0.0f;
+                    }
+            CHECK(valid);
+            lu_grid_destroy(&t);
         }
     }
     CHECK(ok + failed == 200 && failed > 0);
@@ -727,7 +759,7 @@ static void test_nvdb_types(void) {
     };
     /* Two grids in one file: the first Float grid is picked; names select. */
     CHECK_OK(lu_nvdb_save_sparse(path, grids, 2, LU_NVDB_CODEC_NONE, &err), &err);
-    CHECK_OK(lu_grid_load_nvdb(path, NULL, &h, &err), &err);
+    CHECK_OK(load_nvdb_dense(path, NULL, &h, &err), &err);
     CHECK(strcmp(h.name, "density") == 0);
     /* Active box [-5,2] x [-3,4] x [-20,1]; the map puts index 0 at -5*0.5 etc. */
     CHECK(h.nx == 8 && h.ny == 8 && h.nz == 22);
@@ -738,43 +770,43 @@ static void test_nvdb_types(void) {
     CHECK(h.index_to_world.m[0][0] == 0.5f && h.index_to_world.m[0][3] == -2.5f &&
           h.index_to_world.m[1][3] == -1.5f && h.index_to_world.m[2][3] == -10.0f);
     lu_grid_destroy(&h);
-    CHECK(lu_grid_load_nvdb(path, "velocity", &h, &err) == LU_ERR_UNSUPPORTED);
+    CHECK(load_nvdb_dense(path, "velocity", &h, &err) == LU_ERR_UNSUPPORTED);
     CHECK(strstr(err.message, "Vec3f") && strstr(err.message, path));
-    CHECK(lu_grid_load_nvdb(path, "nope", &h, &err) == LU_ERR_INVALID_ARG);
+    CHECK(load_nvdb_dense(path, "nope", &h, &err) == LU_ERR_INVALID_ARG);
     CHECK(strstr(err.message, "velocity") && strstr(err.message, "density"));
     /* Only non-float grids. */
     grids[1].type = LU_NVDB_DOUBLE;
     CHECK_OK(lu_nvdb_save_sparse(path, grids, 2, LU_NVDB_CODEC_NONE, &err), &err);
-    CHECK(lu_grid_load_nvdb(path, NULL, &h, &err) == LU_ERR_UNSUPPORTED);
+    CHECK(load_nvdb_dense(path, NULL, &h, &err) == LU_ERR_UNSUPPORTED);
     CHECK(strstr(err.message, "Double") != NULL);
-    CHECK(lu_grid_load_nvdb(path, "density", &h, &err) == LU_ERR_UNSUPPORTED);
+    CHECK(load_nvdb_dense(path, "density", &h, &err) == LU_ERR_UNSUPPORTED);
     /* Float grids the density convention cannot take. */
     grids[1].type = LU_NVDB_FLOAT;
     grids[1].background = 0.5f;
     CHECK_OK(lu_nvdb_save_sparse(path, grids + 1, 1, LU_NVDB_CODEC_NONE, &err), &err);
-    CHECK(lu_grid_load_nvdb(path, NULL, &h, &err) == LU_ERR_UNSUPPORTED);
+    CHECK(load_nvdb_dense(path, NULL, &h, &err) == LU_ERR_UNSUPPORTED);
     CHECK(strstr(err.message, "background") != NULL);
     grids[1].background = 0.0f;
     const float negative[3] = {1.0f, -2.0f, 1.0f}, nan3[3] = {1.0f, NAN, 1.0f};
     grids[1].values = negative;
     CHECK_OK(lu_nvdb_save_sparse(path, grids + 1, 1, LU_NVDB_CODEC_NONE, &err), &err);
-    CHECK(lu_grid_load_nvdb(path, NULL, &h, &err) == LU_ERR_RANGE);
+    CHECK(load_nvdb_dense(path, NULL, &h, &err) == LU_ERR_RANGE);
     CHECK(strstr(err.message, "(2,4,1)") != NULL);
     grids[1].values = nan3;
     CHECK_OK(lu_nvdb_save_sparse(path, grids + 1, 1, LU_NVDB_CODEC_NONE, &err), &err);
-    CHECK(lu_grid_load_nvdb(path, NULL, &h, &err) == LU_ERR_NONFINITE);
+    CHECK(load_nvdb_dense(path, NULL, &h, &err) == LU_ERR_NONFINITE);
     /* Past LU_MAX_GRID_VOXELS: 601^3 dense voxels from two active ones. */
     const int32_t far[2][3] = {{0, 0, 0}, {600, 600, 600}};
     grids[1].ijk = far;
     grids[1].values = vals;
     grids[1].count = 2;
     CHECK_OK(lu_nvdb_save_sparse(path, grids + 1, 1, LU_NVDB_CODEC_NONE, &err), &err);
-    CHECK(lu_grid_load_nvdb(path, NULL, &h, &err) == LU_ERR_LIMIT);
+    CHECK(load_nvdb_dense(path, NULL, &h, &err) == LU_ERR_LIMIT);
     CHECK(strstr(err.message, path) != NULL);
     /* No active voxels at all. */
     grids[1].count = 0;
     CHECK_OK(lu_nvdb_save_sparse(path, grids + 1, 1, LU_NVDB_CODEC_NONE, &err), &err);
-    CHECK(lu_grid_load_nvdb(path, NULL, &h, &err) == LU_ERR_UNSUPPORTED);
+    CHECK(load_nvdb_dense(path, NULL, &h, &err) == LU_ERR_UNSUPPORTED);
     /* The writer refuses what the reader would refuse. */
     lu_grid g;
     CHECK_OK(lu_grid_alloc(&g, 2, 2, 2, &err), &err);

@@ -14,6 +14,7 @@ static void test_all_kernels_compile_as_glsl(void) {
     size_t n = (size_t)snprintf(src, sizeof src,
                                 "layout(local_size_x = 1) in;\n"
                                 "layout(std430, binding = 0) buffer Out { float v[]; } o;\n"
+                                "layout(std430, binding = 1) readonly buffer Tree { uint pnanovdb_buf_data[]; };\n"
                                 "#include \"kernels/lu_kernel.h\"\n"
                                 "float lu_k_density(LU_CTX_PARAM, int m, vec3 p) { return p.x; }\n"
                                 "float lu_k_shadow_depth(LU_CTX_PARAM, int map, int i, int j) { return 1.0; }\n"

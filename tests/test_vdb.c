@@ -48,10 +48,14 @@ static bool write_all(const char *path, const void *data, size_t size) {
     return fclose(fp) == 0 && ok;
 }
 
+/* Voxel by voxel, whatever the storage (a .nvdb or .vdb load is sparse). */
 static bool same_grid(const lu_grid *a, const lu_grid *b) {
     if (a->nx != b->nx || a->ny != b->ny || a->nz != b->nz) return false;
-    return memcmp(a->data, b->data, (size_t)a->nx * a->ny * a->nz * sizeof(float)) == 0 &&
-           memcmp(&a->index_to_world, &b->index_to_world, sizeof a->index_to_world) == 0;
+    for (int z = 0; z < a->nz; z++)
+        for (int y = 0; y < a->ny; y++)
+            for (int x = 0; x < a->nx; x++)
+                if (lu_grid_at(a, x, y, z) != lu_grid_at(b, x, y, z)) return false;
+    return memcmp(&a->index_to_world, &b->index_to_world, sizeof a->index_to_world) == 0;
 }
 
 static lu_vec3 map_point(const lu_affine *m, double x, double y, double z) {

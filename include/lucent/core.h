@@ -67,7 +67,15 @@ lu_result lu_fail(lu_error *err, lu_result code, const char *fmt, ...)
 
 /* Explicit limits: inputs beyond these are rejected with LU_ERR_LIMIT. */
 #define LU_MAX_IMAGE_DIM      16384
-#define LU_MAX_GRID_VOXELS    (512ull * 512ull * 512ull)
+#define LU_MAX_GRID_VOXELS    (512ull * 512ull * 512ull)   /* dense grids (4 bytes a voxel) */
+/* Sparse grids (NanoVDB trees read in place, lucent/grid.h): the tree's
+ * buffer (memory scales with it, not with the bounding box), each side of
+ * the active bounding box (index coordinates are floats: a side of 2^15
+ * keeps 9 bits of sub-voxel position), and a .nvdb file, which is mapped
+ * rather than read, so LU_MAX_FILE_BYTES does not apply to it. */
+#define LU_MAX_TREE_BYTES     (64ull * 1024ull * 1024ull * 1024ull)
+#define LU_MAX_GRID_SIDE      32768
+#define LU_MAX_GRID_FILE_BYTES (256ull * 1024ull * 1024ull * 1024ull)
 #define LU_MAX_TRIANGLES      (64u * 1024u * 1024u)
 #define LU_MAX_VERTICES       (64u * 1024u * 1024u)
 #define LU_MAX_FILE_BYTES     (2ull * 1024ull * 1024ull * 1024ull)

@@ -7,13 +7,15 @@
  *
  * Buffer contents (vec4 each; counts and sizes are small integers stored as
  * floats, exact):
+ *   header (uints, lu_scene_layout.h), as vec4 of float bits:
  *   header[0] = camera position, w = image width
  *   header[1] = camera right (scaled, lu_k_camera), w = image height
  *   header[2] = camera up (scaled), w = medium count
  *   header[3] = camera forward, w = light count (environment lights excluded)
  *   media[LU_SCENE_MEDIUM_VEC4 m + i], lights[LU_SCENE_LIGHT_VEC4 l + i]: the
  *     records of lu_scene_layout.h's tables (LU_SCENE_MEDIUM_RECORD, ...)
- *   then, in media, the majorant grids (lu_scene_layout.h) */
+ *   then, in media, the majorant grids (lu_scene_layout.h); in the header,
+ *   the tree records and the sparse grids' trees (lu_grid_tree.h) */
 #ifndef LU_SCENE_GPU_GLSL
 #define LU_SCENE_GPU_GLSL
 
@@ -24,22 +26,31 @@
 #include "lu_optics.h"
 #include "lu_medium.h"
 
-layout(std430, binding = LU_SCENE_BINDING_HEADER) readonly buffer LuSceneHeader { vec4 lu_scene_header[]; };
+layout(std430, binding = LU_SCENE_BINDING_HEADER) readonly buffer LuSceneHeader { uint lu_scene_words[]; };
 layout(std430, binding = LU_SCENE_BINDING_MEDIA) readonly buffer LuSceneMedia { vec4 lu_scene_media[]; };
 layout(std430, binding = LU_SCENE_BINDING_LIGHTS) readonly buffer LuSceneLights { vec4 lu_scene_lights[]; };
 layout(binding = LU_SCENE_UNIT_GRID0) uniform sampler3D lu_scene_grid[LU_SCENE_MAX_MEDIA];
+#ifdef LU_SCENE_TREES
+#define pnanovdb_buf_data lu_scene_words
+#include "lu_grid_tree.h"
+#endif
 
-int lu_scene_width() { return int(lu_scene_header[0].w); }
-int lu_scene_height() { return int(lu_scene_header[1].w); }
-int lu_scene_medium_count() { return int(lu_scene_header[2].w); }
-int lu_scene_light_count() { return int(lu_scene_header[3].w); }
-vec3 lu_scene_camera_position() { return lu_scene_header[0].xyz; }
+vec4 lu_scene_header(int i) {
+    return uintBitsToFloat(uvec4(lu_scene_words[4 * i], lu_scene_words[4 * i + 1], lu_scene_words[4 * i + 2],
+                                 lu_scene_words[4 * i + 3]));
+}
+
+int lu_scene_width() { return int(lu_scene_header(0).w); }
+int lu_scene_height() { return int(lu_scene_header(1).w); }
+int lu_scene_medium_count() { return int(lu_scene_header(2).w); }
+int lu_scene_light_count() { return int(lu_scene_header(3).w); }
+vec3 lu_scene_camera_position() { return lu_scene_header(0).xyz; }
 
 lu_k_camera lu_scene_camera() {
     lu_k_camera k;
-    k.right = lu_scene_header[1].xyz;
-    k.up = lu_scene_header[2].xyz;
-    k.forward = lu_scene_header[3].xyz;
+    k.right = lu_scene_header(1).xyz;
+    k.up = lu_scene_header(2).xyz;
+    k.forward = lu_scene_header(3).xyz;
     k.inv_width = 1.0f / float(lu_scene_width());
     k.inv_height = 1.0f / float(lu_scene_height());
     return k;
@@ -74,12 +85,28 @@ int lu_k_light_count(LU_CTX_PARAM) { return lu_scene_light_count(); }
 lu_k_light lu_k_light_get(LU_CTX_PARAM, int l) { return lu_scene_light(l); }
 
 /* Trilinear density at an index-space position: lu_grid_sample's convention
- * (zero outside [0, n-1]) through the zero-border GL_LINEAR texture. The
+ * (zero outside [0, n-1]) from a sparse grid's tree (lu_grid_tree.h) or
+ * through a dense grid's zero-border GL_LINEAR texture. The
  * sampler index is a literal in each branch, so no dynamically uniform
  * indexing rule applies. */
 float lu_k_density(LU_CTX_PARAM, int medium, vec3 p_index) {
     vec4 s = lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + LU_SCENE_MEDIUM_DENSITY_VEC4];
     if (lu_scene_media[LU_SCENE_MEDIUM_VEC4 * medium + LU_SCENE_MEDIUM_CONSTANT_VEC4].w != 0.0f) return s.w;
+#ifdef LU_SCENE_TREES
+    int tw = LU_SCENE_TREE_TABLE + LU_SCENE_TREE_WORDS * medium;
+    if (lu_scene_words[tw + 7] != 0u) {
+        lu_k_tree t;
+        t.buf.unused = 0u;
+        t.root.address.byte_offset = lu_scene_words[tw];
+        t.lo_x = int(lu_scene_words[tw + 1]);
+        t.lo_y = int(lu_scene_words[tw + 2]);
+        t.lo_z = int(lu_scene_words[tw + 3]);
+        t.nx = int(lu_scene_words[tw + 4]);
+        t.ny = int(lu_scene_words[tw + 5]);
+        t.nz = int(lu_scene_words[tw + 6]);
+        return lu_tree_sample(t, p_index) * s.w;
+    }
+#endif
     float v = 0.0f;
     switch (medium) {
     case 0: v = lu_grid_sample_tex(lu_scene_grid[0], p_index); break;

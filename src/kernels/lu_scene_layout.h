@@ -17,6 +17,18 @@
 #define LU_SCENE_UNIT_FREE 8        /* first texture unit a method may use */
 
 #define LU_SCENE_HEADER_VEC4 4
+/* The header buffer is read as uints (camera floats by their bits). After
+ * the camera's LU_SCENE_HEADER_VEC4 vec4 it holds one tree record of
+ * LU_SCENE_TREE_WORDS uints per medium from word LU_SCENE_TREE_TABLE (root
+ * node byte offset, tree coordinate of index 0 as three ints, the index box
+ * nx, ny, nz, and 1 for a sparse grid, else 0), then, from byte
+ * LU_SCENE_TREES_BYTE, the sparse grids' NanoVDB buffers, each 32-byte
+ * aligned, which kernels/lu_grid_tree.h reads in place. A buffer address is
+ * a 32-bit byte offset, and the whole buffer must fit the device's largest
+ * storage buffer (lu_gpu_info.max_ssbo_size). */
+#define LU_SCENE_TREE_TABLE 16
+#define LU_SCENE_TREE_WORDS 8
+#define LU_SCENE_TREES_BYTE ((LU_SCENE_TREE_TABLE + LU_SCENE_TREE_WORDS * LU_SCENE_MAX_MEDIA) * 4)
 #define LU_SCENE_MEDIUM_VEC4 10
 #define LU_SCENE_LIGHT_VEC4 3
 

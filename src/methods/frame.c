@@ -94,7 +94,7 @@ static bool same_medium_values(const lu_medium *a, const lu_medium *b) {
     return a->kind == b->kind && a->constant == b->constant && SAME(a->sigma_a, b->sigma_a) &&
            SAME(a->sigma_s, b->sigma_s) && a->phase_g == b->phase_g && a->eta == b->eta &&
            SAME(a->surface, b->surface) && a->from_object == b->from_object && a->grid.data == b->grid.data &&
-           a->grid.generation == b->grid.generation && SAME(a->index_to_world, b->index_to_world) &&
+           a->grid.tree == b->grid.tree && a->grid.generation == b->grid.generation && SAME(a->index_to_world, b->index_to_world) &&
            a->emission == b->emission && SAME(a->le_color, b->le_color) && a->le_scale == b->le_scale &&
            a->temp_scale == b->temp_scale && a->temp_offset == b->temp_offset &&
            a->emission_grid.data == b->emission_grid.data && a->emission_grid.generation == b->emission_grid.generation;

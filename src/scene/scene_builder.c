@@ -126,7 +126,7 @@ lu_result lu_scene_builder_add_medium(lu_scene_builder *b, const lu_medium_desc 
     lu_result r = LU_OK;
     if (d->kind != LU_DENSITY_GRID && d->kind != LU_DENSITY_CONSTANT)
         r = lu_fail(err, LU_ERR_INVALID_ARG, "density kind %d is not an lu_density_kind", (int)d->kind);
-    else if (d->kind == LU_DENSITY_GRID && !m.grid.data)
+    else if (d->kind == LU_DENSITY_GRID && !lu_grid_has_values(&m.grid))
         r = lu_fail(err, LU_ERR_INVALID_ARG, "a grid medium needs a grid");
     else if (d->kind == LU_DENSITY_CONSTANT && !m.has_boundary)
         r = lu_fail(err, LU_ERR_SCENE, "a constant density needs a \"boundary\" mesh to bound it");

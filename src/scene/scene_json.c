@@ -551,11 +551,22 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
     jpath dp = *pp;
     *anim = NULL;
     if (cJSON_HasObjectItem(d, "file")) {
-        static const char *const keys[] = {"file", "grid", "frames", "extend", NULL};
+        static const char *const keys[] = {"file", "grid", "storage", "frames", "extend", NULL};
         TRY(check_object(c, d, &dp, keys));
-        const char *file, *gname;
+        const char *file, *gname, *storage_name = NULL;
         TRY(get_string(c, d, &dp, "file", true, &file));
         TRY(get_string(c, d, &dp, "grid", false, &gname));
+        TRY(get_string(c, d, &dp, "storage", false, &storage_name));
+        /* Emission and temperature grids are re-embedded over the density's
+         * voxels (embed_grid), which is dense work: they load dense. */
+        lu_grid_storage storage = density ? LU_GRID_STORAGE_SPARSE : LU_GRID_STORAGE_DENSE;
+        if (storage_name && strcmp(storage_name, "dense") == 0) {
+            storage = LU_GRID_STORAGE_DENSE;
+        } else if (storage_name && (strcmp(storage_name, "sparse") != 0 || !density)) {
+            jpath sp = jp_key(&dp, "storage");
+            return scene_fail(c, &sp, LU_ERR_SCENE, "%s", density ? "expected \"sparse\" or \"dense\""
+                                                                  : "an emission or temperature grid is always dense");
+        }
         char path[1024];
         lu_path_resolve(c->file, file, path, sizeof path);
         bool vdb = lu_path_has_suffix(path, ".vdb");
@@ -563,6 +574,10 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
             jpath fp = jp_key(&dp, "file");
             return scene_fail(c, &fp, LU_ERR_UNSUPPORTED,
                               "\"%s\" is neither a .nvdb nor a .vdb file (raw grids use \"raw\")", file);
+        }
+        if (storage_name && cJSON_HasObjectItem(d, "frames")) {
+            jpath sp = jp_key(&dp, "storage");
+            return scene_fail(c, &sp, LU_ERR_SCENE, "a sequence is always dense (its frames are edited in)");
         }
         if (cJSON_HasObjectItem(d, "frames")) {
             int first = 0, last = 0;
@@ -576,8 +591,17 @@ static lu_result parse_grid_source(parse_ctx *c, const cJSON *d, const jpath *pp
             jpath ep = jp_key(&dp, "extend");
             return scene_fail(c, &ep, LU_ERR_SCENE, "only meaningful with \"frames\"");
         }
-        return wrap_loader(c, &dp, vdb ? lu_grid_load_vdb(path, gname, grid, c->err)
-                                       : lu_grid_load_nvdb(path, gname, grid, c->err));
+        if (vdb) {
+            lu_result r = lu_grid_load_vdb(path, gname, grid, c->err);
+            if (r == LU_OK && storage == LU_GRID_STORAGE_DENSE && lu_grid_is_sparse(grid)) {
+                lu_grid d2;
+                r = lu_grid_densify(grid, &d2, c->err);
+                lu_grid_destroy(grid);
+                if (r == LU_OK) *grid = d2;
+            }
+            return wrap_loader(c, &dp, r);
+        }
+        return wrap_loader(c, &dp, lu_grid_load_nvdb_as(path, gname, storage, grid, c->err));
     }
     if (cJSON_HasObjectItem(d, "raw")) {
         static const char *const keys[] = {"raw", "dims", "voxel_size", "origin", NULL};

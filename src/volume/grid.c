@@ -1,4 +1,4 @@
-/* Dense density grids: storage, trilinear sampling, raw float32 files. */
+/* Density grids: dense and sparse storage, trilinear sampling, raw float32 files. */
 #include <lucent/grid.h>
 
 #include <errno.h>
@@ -7,8 +7,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 
+#include "kernels/lu_grid_tree.h"
 #include "volume/grid_internal.h"
 
 /* One counter for every grid of the process: a grid destroyed and another
@@ -51,10 +53,87 @@ lu_result lu_grid_alloc(lu_grid *g, int nx, int ny, int nz, lu_error *err) {
     return LU_OK;
 }
 
+void lu_grid_tree_owner_free(lu_grid_tree_owner *o) {
+    if (!o) return;
+    if (o->map) munmap(o->map, o->map_bytes);
+    lu_free(o->words);
+    lu_free(o);
+}
+
 void lu_grid_destroy(lu_grid *g) {
     if (!g) return;
     lu_free(g->data);
+    lu_grid_tree_owner_free(g->tree_owner);
     memset(g, 0, sizeof *g);
+}
+
+lu_k_tree lu_grid_tree_view(const lu_grid *g) {
+    lu_k_tree t;
+    /* PNanoVDB's C buffer is not const, but nothing here writes through it. */
+    t.buf = pnanovdb_make_buf((uint32_t *)(uintptr_t)g->tree, (g->tree_bytes + 7u) / 8u * 2u);
+    pnanovdb_grid_handle_t grid = {pnanovdb_address_null()};
+    t.root = pnanovdb_tree_get_root(t.buf, pnanovdb_grid_get_tree(t.buf, grid));
+    t.lo_x = g->tree_lo[0], t.lo_y = g->tree_lo[1], t.lo_z = g->tree_lo[2];
+    t.nx = g->nx, t.ny = g->ny, t.nz = g->nz;
+    return t;
+}
+
+float lu_grid_tree_at(const lu_grid *g, int x, int y, int z) {
+    if (!g->tree) return 0.0f;
+    return lu_tree_voxel(lu_grid_tree_view(g), x, y, z);
+}
+
+uint64_t lu_grid_storage_bytes(const lu_grid *g) {
+    if (g->data) return (uint64_t)g->nx * (uint64_t)g->ny * (uint64_t)g->nz * sizeof(float);
+    return g->tree ? g->tree_bytes : 0;
+}
+
+uint64_t lu_grid_active_voxels(const lu_grid *g) {
+    if (!g->data) {
+        if (!g->tree) return 0;
+        lu_k_tree t = lu_grid_tree_view(g);
+        pnanovdb_grid_handle_t grid = {pnanovdb_address_null()};
+        return pnanovdb_tree_get_voxel_count(t.buf, pnanovdb_grid_get_tree(t.buf, grid));
+    }
+    uint64_t n = 0, count = (uint64_t)g->nx * (uint64_t)g->ny * (uint64_t)g->nz;
+    for (uint64_t i = 0; i < count; i++) n += g->data[i] > 0.0f;
+    return n;
+}
+
+typedef struct densify_ctx {
+    const lu_grid *src;
+    lu_grid *dst;
+} densify_ctx;
+
+static void densify_rows(void *p, int64_t begin, int64_t end, int thread_index) {
+    (void)thread_index;
+    densify_ctx *c = p;
+    lu_k_tree t = lu_grid_tree_view(c->src);
+    pnanovdb_readaccessor_t acc;
+    pnanovdb_readaccessor_init(&acc, t.root);
+    for (int64_t row = begin; row < end; row++) {
+        int y = (int)(row % c->dst->ny), z = (int)(row / c->dst->ny);
+        float *dst = c->dst->data + (size_t)row * (size_t)c->dst->nx;
+        for (int x = 0; x < c->dst->nx; x++) dst[x] = lu_tree_at(t, &acc, x, y, z);
+    }
+}
+
+lu_result lu_grid_densify(const lu_grid *src, lu_grid *dst, lu_error *err) {
+    memset(dst, 0, sizeof *dst);
+    if (!src || !lu_grid_has_values(src)) return lu_fail(err, LU_ERR_INVALID_ARG, "lu_grid_densify: no grid");
+    lu_result r = lu_grid_alloc(dst, src->nx, src->ny, src->nz, err);
+    if (r != LU_OK) return r;
+    if (src->data) {
+        memcpy(dst->data, src->data, (size_t)src->nx * src->ny * src->nz * sizeof(float));
+    } else {
+        densify_ctx c = {src, dst};
+        lu_parallel_for((int64_t)dst->ny * dst->nz, 0, densify_rows, &c, NULL);
+    }
+    dst->index_to_world = src->index_to_world;
+    dst->min_value = src->min_value;
+    dst->max_value = src->max_value;
+    memcpy(dst->name, src->name, sizeof dst->name);
+    return LU_OK;
 }
 
 void lu_grid_update_range(lu_grid *g) {
@@ -94,7 +173,15 @@ static void stamp_edit(lu_grid *g, const int lo[3], const int hi[3]) {
     }
 }
 
+static lu_result refuse_sparse(const lu_grid *g, const char *fn, lu_error *err) {
+    return lu_fail(err, LU_ERR_UNSUPPORTED,
+                   "%s: grid \"%s\" is sparse (a NanoVDB tree read in place) and cannot be edited; load it with "
+                   "storage \"dense\" (LU_GRID_STORAGE_DENSE) or edit a lu_grid_densify copy",
+                   fn, g->name);
+}
+
 lu_result lu_grid_set_values(lu_grid *g, const float *values, size_t count, lu_error *err) {
+    if (g && lu_grid_is_sparse(g)) return refuse_sparse(g, "lu_grid_set_values", err);
     if (!g || !g->data || !values) return lu_fail(err, LU_ERR_INVALID_ARG, "lu_grid_set_values: no grid or no values");
     size_t n = (size_t)g->nx * (size_t)g->ny * (size_t)g->nz;
     if (count != n)
@@ -115,6 +202,7 @@ lu_result lu_grid_set_values(lu_grid *g, const float *values, size_t count, lu_e
 
 lu_result lu_grid_apply(lu_grid *g, const int lo[3], const int hi[3], lu_grid_edit_fn fn, void *ctx,
                         lu_error *err) {
+    if (g && lu_grid_is_sparse(g)) return refuse_sparse(g, "lu_grid_apply", err);
     if (!g || !g->data || !lo || !hi || !fn)
         return lu_fail(err, LU_ERR_INVALID_ARG, "lu_grid_apply: no grid, box or function");
     const int n[3] = {g->nx, g->ny, g->nz};
@@ -166,6 +254,7 @@ lu_result lu_grid_apply(lu_grid *g, const int lo[3], const int hi[3], lu_grid_ed
  * exactly like a GL_LINEAR texture with a zero border: weights come from the
  * fractional part, the eight neighbours from lu_grid_at. */
 float lu_grid_sample(const lu_grid *g, lu_vec3 p) {
+    if (!g->data) return g->tree ? lu_tree_sample(lu_grid_tree_view(g), p) : 0.0f;
     /* Also rejects NaN, and keeps the integer conversions in range. */
     if (!(p.x >= -1.0f && p.y >= -1.0f && p.z >= -1.0f && p.x <= (float)g->nx && p.y <= (float)g->ny &&
           p.z <= (float)g->nz))

@@ -12,19 +12,23 @@
  *                 node/tile counts, codec, padding, version
  *   data          per grid: NONE: the grid buffer (file size == grid size);
  *                 ZIP: u64 compressed size, then a zlib stream;
- *                 BLOSC: chunks (not supported here). */
+ *                 BLOSC: chunks (not supported here).
+ * A grid kept sparse owns its buffer: the file mapped (uncompressed, 8-byte
+ * aligned data) or an allocation (compressed, unaligned, or from memory).
+ * Over 800 lines because it is one hardened reader: every check on untrusted
+ * bytes (container, tree, values for both storages) sits in this file. */
 #include <lucent/grid.h>
 
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <zlib.h>
 
-#define PNANOVDB_C
-#define PNANOVDB_BUF_BOUNDS_CHECK
-#include <nanovdb/PNanoVDB.h>
+#include "volume/grid_internal.h"   /* PNanoVDB.h, with its buffer bounds check */
 
 #define NVDB_HEADER_SIZE 16u
 #define NVDB_META_SIZE 176u
@@ -204,6 +208,8 @@ static lu_result scan_container(nvdb_src *s, nvdb_index *ix, lu_error *err) {
 
 typedef struct nvdb_buf {
     uint32_t *words;
+    void *map;               /* words lie in this file mapping (not allocated) */
+    size_t map_bytes;
     uint64_t size;           /* bytes that hold the grid */
     pnanovdb_buf_t buf;
     uint64_t file_base;      /* file offset of byte 0 (NONE codec), else 0 */
@@ -231,10 +237,11 @@ static lu_result load_buffer(nvdb_src *s, const nvdb_meta *g, nvdb_buf *b, lu_er
                        "%s: byte offset %llu: grid \"%.64s\" is BLOSC-compressed, which this reader does not support; "
                        "re-export it uncompressed or with ZIP compression",
                        s->label, (unsigned long long)g->meta_offset, g->name);
-    if (g->grid_size > LU_MAX_FILE_BYTES)
-        return lu_fail(err, LU_ERR_LIMIT, "%s: byte offset %llu: grid \"%.64s\" of %llu bytes exceeds the limit of %llu",
+    if (g->grid_size > LU_MAX_TREE_BYTES)
+        return lu_fail(err, LU_ERR_LIMIT,
+                       "%s: byte offset %llu: grid \"%.64s\" of %llu bytes exceeds the limit of %llu (LU_MAX_TREE_BYTES)",
                        s->label, (unsigned long long)g->meta_offset, g->name, (unsigned long long)g->grid_size,
-                       (unsigned long long)LU_MAX_FILE_BYTES);
+                       (unsigned long long)LU_MAX_TREE_BYTES);
     if (g->grid_size < PNANOVDB_GRID_SIZE + PNANOVDB_TREE_SIZE)
         return lu_fail(err, LU_ERR_FORMAT,
                        "%s: byte offset %llu: grid \"%.64s\" size %llu is smaller than a grid and tree header (%u)",
@@ -278,8 +285,24 @@ static lu_result load_buffer(nvdb_src *s, const nvdb_meta *g, nvdb_buf *b, lu_er
             return r;
         }
     }
-    /* Whole 64-bit words, zero padded: PNanoVDB reads 8 bytes at a time. */
     uint64_t words = (g->grid_size + 7u) / 8u * 2u;
+    /* Mapped, not read: pages come in as the walk and the renderer touch
+     * them, and the file's size is no longer bounded by what one read takes. */
+    long page = sysconf(_SC_PAGESIZE);
+    if (g->codec == NVDB_CODEC_NONE && s->fp && g->data_offset % 8u == 0 && g->grid_size % 8u == 0 && page > 0) {
+        uint64_t base = g->data_offset / (uint64_t)page * (uint64_t)page, delta = g->data_offset - base;
+        void *map = mmap(NULL, (size_t)(delta + g->grid_size), PROT_READ, MAP_PRIVATE, fileno(s->fp), (off_t)base);
+        if (map != MAP_FAILED) {
+            b->map = map;
+            b->map_bytes = (size_t)(delta + g->grid_size);
+            b->words = (uint32_t *)(void *)((unsigned char *)map + delta);
+            b->size = g->grid_size;
+            b->file_base = g->data_offset;
+            b->buf = pnanovdb_make_buf(b->words, words);
+            return LU_OK;
+        }
+    }
+    /* Whole 64-bit words, zero padded: PNanoVDB reads 8 bytes at a time. */
     b->words = lu_calloc((size_t)words, sizeof(uint32_t));
     if (!b->words) {
         lu_free(zbuf);
@@ -432,18 +455,6 @@ static lu_result walk_upper(tree_walk *w, pnanovdb_upper_handle_t upper, int64_t
     return LU_OK;
 }
 
-/* Root tile keys pack the upper node origin >> 12 into 21 bits per axis. */
-static bool key_origin(uint64_t key, int64_t o[3]) {
-    uint64_t part[3] = {(key >> 42) & 0x1FFFFFu, (key >> 21) & 0x1FFFFFu, key & 0x1FFFFFu};
-    if (key >> 63) return false;
-    for (int i = 0; i < 3; i++) {
-        if (part[i] > 0xFFFFFu) return false;
-        int64_t v = (int64_t)(part[i] << 12);
-        o[i] = v >= ((int64_t)1 << 31) ? v - ((int64_t)1 << 32) : v;
-    }
-    return true;
-}
-
 /* ---- dense expansion ------------------------------------------------------- */
 
 typedef struct fill_ctx {
@@ -471,7 +482,58 @@ static void fill_rows(void *p, int64_t begin, int64_t end, int thread_index) {
     }
 }
 
-static lu_result read_grid(nvdb_buf *b, const nvdb_meta *m, lu_grid *g, lu_error *err) {
+static void buf_free(nvdb_buf *b) {
+    if (b->map) munmap(b->map, b->map_bytes);
+    else lu_free(b->words);
+    b->map = NULL;
+    b->words = NULL;
+}
+
+/* Sparse load: every value the dense expansion would read (leaf values and
+ * tiles inside the active box) is checked as it would be, and the range is
+ * taken over the same voxels (0 where no node covers one). */
+typedef struct value_scan {
+    const lu_grid *g;
+    const char *label;
+    uint64_t covered;
+    float lo, hi;
+    bool bad;
+    int64_t at[3];
+    float bad_value;
+} value_scan;
+
+static void scan_node(void *p, const int64_t o[3], int dim, const float *leaf, float tile) {
+    value_scan *c = p;
+    int lo[3], hi[3];
+    if (c->bad || !lu_grid_tree_clip(c->g, o, dim, lo, hi)) return;
+    c->covered += (uint64_t)(hi[0] - lo[0]) * (uint64_t)(hi[1] - lo[1]) * (uint64_t)(hi[2] - lo[2]);
+    if (!leaf) {
+        if (!(isfinite(tile) && tile >= 0.0f)) {
+            c->bad = true;
+            c->bad_value = tile;
+            for (int a = 0; a < 3; a++) c->at[a] = (int64_t)lo[a] + c->g->tree_lo[a];
+            return;
+        }
+        c->lo = fminf(c->lo, tile), c->hi = fmaxf(c->hi, tile);
+        return;
+    }
+    for (int x = lo[0]; x < hi[0]; x++)
+        for (int y = lo[1]; y < hi[1]; y++)
+            for (int z = lo[2]; z < hi[2]; z++) {
+                int lx = (int)(x + c->g->tree_lo[0] - o[0]), ly = (int)(y + c->g->tree_lo[1] - o[1]),
+                    lz = (int)(z + c->g->tree_lo[2] - o[2]);
+                float v = leaf[(lx * 8 + ly) * 8 + lz];
+                if (!(isfinite(v) && v >= 0.0f)) {
+                    c->bad = true;
+                    c->bad_value = v;
+                    c->at[0] = o[0] + lx, c->at[1] = o[1] + ly, c->at[2] = o[2] + lz;
+                    return;
+                }
+                c->lo = fminf(c->lo, v), c->hi = fmaxf(c->hi, v);
+            }
+}
+
+static lu_result read_grid(nvdb_buf *b, const nvdb_meta *m, lu_grid_storage storage, lu_grid *g, lu_error *err) {
     char at[160];
     const char *lb = b->label;
     pnanovdb_grid_handle_t grid = {pnanovdb_address_null()};
@@ -564,7 +626,7 @@ static lu_result read_grid(nvdb_buf *b, const nvdb_meta *m, lu_grid *g, lu_error
     for (uint32_t i = 0; i < tiles; i++) {
         pnanovdb_root_tile_handle_t tile = pnanovdb_root_get_tile(t, root, i);
         int64_t o[3];
-        if (!key_origin(pnanovdb_root_tile_get_key(buf, tile), o))
+        if (!lu_nvdb_key_origin(pnanovdb_root_tile_get_key(buf, tile), o))
             return lu_fail(err, LU_ERR_FORMAT, "%s: %s: root tile %u has an invalid key", lb,
                            where_in(b, tile.address.byte_offset, at, sizeof at), i);
         if (pnanovdb_root_tile_get_child(buf, tile) != 0) {
@@ -582,6 +644,15 @@ static lu_result read_grid(nvdb_buf *b, const nvdb_meta *m, lu_grid *g, lu_error
         return lu_fail(err, LU_ERR_UNSUPPORTED, "%s: grid \"%.64s\" has no active voxels", lb, m->name);
 
     int64_t dim[3];
+    if (storage != LU_GRID_STORAGE_DENSE) {
+        for (int i = 0; i < 3; i++)
+            if (w.hi[i] - w.lo[i] + 1 > LU_MAX_GRID_SIDE)
+                return lu_fail(err, LU_ERR_LIMIT,
+                               "%s: grid \"%.64s\": active bounding box [%lld,%lld,%lld]..[%lld,%lld,%lld] is wider "
+                               "than the limit of %d voxels a side (LU_MAX_GRID_SIDE)",
+                               lb, m->name, (long long)w.lo[0], (long long)w.lo[1], (long long)w.lo[2],
+                               (long long)w.hi[0], (long long)w.hi[1], (long long)w.hi[2], LU_MAX_GRID_SIDE);
+    }
     for (int i = 0; i < 3; i++) {
         dim[i] = w.hi[i] - w.lo[i] + 1;
         if (dim[i] > (int64_t)NVDB_DENSE_LIMIT)
@@ -589,7 +660,7 @@ static lu_result read_grid(nvdb_buf *b, const nvdb_meta *m, lu_grid *g, lu_error
     }
     uint64_t voxels = (uint64_t)dim[0] * (uint64_t)dim[1];
     if (voxels <= NVDB_DENSE_LIMIT) voxels *= (uint64_t)dim[2];
-    if (voxels > NVDB_DENSE_LIMIT)
+    if (voxels > NVDB_DENSE_LIMIT && storage == LU_GRID_STORAGE_DENSE)
         return lu_fail(err, LU_ERR_LIMIT,
                        "%s: grid \"%.64s\": active bounding box [%lld,%lld,%lld]..[%lld,%lld,%lld] exceeds the limit "
                        "of %llu dense voxels",
@@ -612,6 +683,39 @@ static lu_result read_grid(nvdb_buf *b, const nvdb_meta *m, lu_grid *g, lu_error
                        where_in(b, PNANOVDB_GRID_OFF_MAP + PNANOVDB_MAP_OFF_MATD, at, sizeof at), m->name,
                        finite ? "singular" : "not finite");
 
+    if (storage != LU_GRID_STORAGE_DENSE) {
+        lu_grid_tree_owner *own = lu_calloc(1, sizeof *own);
+        if (!own) return lu_fail(err, LU_ERR_NOMEM, "%s: out of memory", lb);
+        memset(g, 0, sizeof *g);
+        g->nx = (int)(w.hi[0] - w.lo[0] + 1);
+        g->ny = (int)(w.hi[1] - w.lo[1] + 1);
+        g->nz = (int)(w.hi[2] - w.lo[2] + 1);
+        g->tree = b->words;
+        g->tree_bytes = b->size;
+        for (int i = 0; i < 3; i++) g->tree_lo[i] = (int)w.lo[i];
+        own->map = b->map;
+        own->map_bytes = b->map_bytes;
+        own->words = b->map ? NULL : b->words;
+        g->tree_owner = own;
+        b->map = NULL;
+        b->words = NULL;
+        value_scan vs = {.g = g, .label = lb, .lo = INFINITY, .hi = -INFINITY};
+        lu_grid_tree_visit(g, scan_node, &vs);
+        if (vs.bad) {
+            lu_grid_destroy(g);
+            if (!isfinite(vs.bad_value))
+                return lu_fail(err, LU_ERR_NONFINITE,
+                               "%s: grid \"%.64s\": voxel (%lld,%lld,%lld) is not a finite number", lb, m->name,
+                               (long long)vs.at[0], (long long)vs.at[1], (long long)vs.at[2]);
+            return lu_fail(err, LU_ERR_RANGE, "%s: grid \"%.64s\": voxel (%lld,%lld,%lld) has negative density %g", lb,
+                           m->name, (long long)vs.at[0], (long long)vs.at[1], (long long)vs.at[2],
+                           (double)vs.bad_value);
+        }
+        if (vs.covered < (uint64_t)g->nx * (uint64_t)g->ny * (uint64_t)g->nz) vs.lo = fminf(vs.lo, 0.0f), vs.hi = fmaxf(vs.hi, 0.0f);
+        g->min_value = vs.lo;
+        g->max_value = vs.hi;
+        lu_grid_stamp_new(g);
+    } else {
     lu_result r = lu_grid_alloc(g, (int)dim[0], (int)dim[1], (int)dim[2], err);
     if (r != LU_OK) return r;
     fill_ctx fc = {.buf = buf, .root = root, .lo = {(int32_t)w.lo[0], (int32_t)w.lo[1], (int32_t)w.lo[2]}, .g = g};
@@ -631,6 +735,8 @@ static lu_result read_grid(nvdb_buf *b, const nvdb_meta *m, lu_grid *g, lu_error
         return lu_fail(err, LU_ERR_RANGE, "%s: grid \"%.64s\": voxel (%lld,%lld,%lld) has negative density %g", lb,
                        m->name, x, y, z, (double)v);
     }
+    lu_grid_update_range(g);
+    }
     for (int i = 0; i < 3; i++) {
         double t0 = vec[i];
         for (int j = 0; j < 3; j++) {
@@ -640,13 +746,13 @@ static lu_result read_grid(nvdb_buf *b, const nvdb_meta *m, lu_grid *g, lu_error
         g->index_to_world.m[i][3] = (float)t0;
     }
     snprintf(g->name, sizeof g->name, "%s", m->name);
-    lu_grid_update_range(g);
     return LU_OK;
 }
 
 /* ---- entry points ---------------------------------------------------------- */
 
-static lu_result load_from(nvdb_src *s, const char *grid_name, lu_grid *g, lu_error *err) {
+static lu_result load_from(nvdb_src *s, const char *grid_name, lu_grid_storage storage, lu_grid *g,
+                           lu_error *err) {
     nvdb_index ix = {0};
     lu_result r = scan_container(s, &ix, err);
     if (r != LU_OK) {
@@ -681,28 +787,43 @@ static lu_result load_from(nvdb_src *s, const char *grid_name, lu_grid *g, lu_er
     }
     nvdb_buf b;
     r = load_buffer(s, pick, &b, err);
-    if (r == LU_OK) r = read_grid(&b, pick, g, err);
-    lu_free(b.words);
+    if (r == LU_OK) r = read_grid(&b, pick, storage, g, err);
+    buf_free(&b);
     index_free(&ix);
     return r;
 }
 
 lu_result lu_grid_load_nvdb(const char *path, const char *grid_name, lu_grid *g, lu_error *err) {
+    return lu_grid_load_nvdb_as(path, grid_name, LU_GRID_STORAGE_AUTO, g, err);
+}
+
+lu_result lu_grid_load_nvdb_memory(const void *data, size_t size, const char *label, const char *grid_name,
+                                   lu_grid *g, lu_error *err) {
+    return lu_grid_load_nvdb_memory_as(data, size, label, grid_name, LU_GRID_STORAGE_AUTO, g, err);
+}
+
+lu_result lu_grid_load_nvdb_as(const char *path, const char *grid_name, lu_grid_storage storage, lu_grid *g,
+                               lu_error *err) {
     memset(g, 0, sizeof *g);
     FILE *fp;
     uint64_t file_size;
     lu_result opened = lu_open_regular(path, (void **)&fp, &file_size, err);
     if (opened != LU_OK) return opened;
+    if (file_size > LU_MAX_GRID_FILE_BYTES) {
+        fclose(fp);
+        return lu_fail(err, LU_ERR_LIMIT, "%s: file of %llu bytes exceeds the limit of %llu (LU_MAX_GRID_FILE_BYTES)",
+                       path, (unsigned long long)file_size, (unsigned long long)LU_MAX_GRID_FILE_BYTES);
+    }
     nvdb_src s = {.fp = fp, .size = file_size, .label = path};
-    lu_result r = load_from(&s, grid_name, g, err);
-    fclose(fp);
+    lu_result r = load_from(&s, grid_name, storage, g, err);
+    fclose(fp);   /* a mapping outlives its descriptor */
     return r;
 }
 
-lu_result lu_grid_load_nvdb_memory(const void *data, size_t size, const char *label, const char *grid_name,
-                                   lu_grid *g, lu_error *err) {
+lu_result lu_grid_load_nvdb_memory_as(const void *data, size_t size, const char *label, const char *grid_name,
+                                      lu_grid_storage storage, lu_grid *g, lu_error *err) {
     memset(g, 0, sizeof *g);
     nvdb_src s = {.mem = data, .size = size, .label = label ? label : "(memory)"};
     if (!data && size) return lu_fail(err, LU_ERR_INVALID_ARG, "%s: no data", s.label);
-    return load_from(&s, grid_name, g, err);
+    return load_from(&s, grid_name, storage, g, err);
 }

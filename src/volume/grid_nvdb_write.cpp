@@ -141,6 +141,15 @@ extern "C" lu_result lu_nvdb_save_dense(const lu_grid *g, const char *path, lu_n
 }
 
 extern "C" lu_result lu_grid_save_nvdb(const lu_grid *g, const char *path, lu_error *err) {
+    if (g && lu_grid_is_sparse(g)) {
+        // The builder reads voxels from an array: a sparse grid is expanded
+        // first (the dense limit applies).
+        lu_grid d;
+        lu_result r = lu_grid_densify(g, &d, err);
+        if (r == LU_OK) r = lu_nvdb_save_dense(&d, path, LU_NVDB_CODEC_NONE, err);
+        lu_grid_destroy(&d);
+        return r;
+    }
     return lu_nvdb_save_dense(g, path, LU_NVDB_CODEC_NONE, err);
 }
 

@@ -31,8 +31,8 @@ lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *e
     lu_afm_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
     lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
-    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/afm/afm_build.comp", NULL, &g->build, err);
-    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/afm/afm_render.comp", NULL, &g->render, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/afm/afm_build.comp", lu_gpu_scene_defines(scene), &g->build, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/afm/afm_render.comp", lu_gpu_scene_defines(scene), &g->render, err);
     if (r == LU_OK) r = lu_gpu_scene_create(g->ctx, scene, &g->scene, err);
     if (r != LU_OK) {
         lu_afm_gpu_destroy(g);

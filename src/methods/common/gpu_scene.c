@@ -14,10 +14,33 @@ struct lu_gpu_scene {
     int grid_dims[LU_SCENE_MAX_MEDIA][3];    /* 0 for constant media */
     uint64_t grid_generation[LU_SCENE_MAX_MEDIA];   /* lu_grid.generation of the texture's values */
     lu_gpu_texture *grid[LU_SCENE_MAX_MEDIA];
+    bool sparse[LU_SCENE_MAX_MEDIA];         /* the grid is a tree in the header buffer */
+    size_t header_bytes;                     /* camera, tree records, trees */
     lu_majorant maj[LU_SCENE_MAX_MEDIA];     /* of the texture's values (lu_scene_layout.h) */
     lu_gpu_buffer *header, *media, *lights;
     size_t lights_bytes;
 };
+
+/* A sparse grid goes to the GPU as a tree only when its dense box would be
+ * larger than this (or than a 3D texture may be): sampling a texture is
+ * far cheaper there, and on llvmpipe a shader that reads trees takes
+ * minutes to compile (docs/volumes.md "Sparse grids"). */
+static uint64_t g_dense_texture_max = 256ull << 20;
+
+void lu_gpu_scene_set_dense_limit(uint64_t bytes) { g_dense_texture_max = bytes; }
+
+static bool medium_uses_tree(const lu_medium *m) {
+    if (m->kind != LU_DENSITY_GRID || !lu_grid_is_sparse(&m->grid)) return false;
+    const lu_grid *g = &m->grid;
+    uint64_t dense = (uint64_t)g->nx * (uint64_t)g->ny * (uint64_t)g->nz * sizeof(float);
+    return dense > g_dense_texture_max || g->nx > 2048 || g->ny > 2048 || g->nz > 2048;
+}
+
+const char *lu_gpu_scene_defines(const lu_scene *scene) {
+    for (int m = 0; m < scene->medium_count; m++)
+        if (medium_uses_tree(&scene->media[m])) return "#define LU_SCENE_TREES 1\n";
+    return "";
+}
 
 lu_k_medium lu_medium_to_kernel(const lu_medium *m) {
     lu_k_medium k;
@@ -164,12 +187,69 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const l
         if (!gs->media) r = lu_gpu_buffer_create(gs->ctx, bytes, media, &gs->media, err);
         else r = lu_gpu_buffer_upload(gs->media, 0, media, bytes, err);
     }
-    if (r == LU_OK) {
-        if (!gs->header) r = lu_gpu_buffer_create(gs->ctx, sizeof header, header, &gs->header, err);
-        else r = lu_gpu_buffer_upload(gs->header, 0, header, sizeof header, err);
-    }
+    if (r == LU_OK) r = lu_gpu_buffer_upload(gs->header, 0, header, sizeof header, err);
     lu_free(lights);
     lu_free(media);
+    return r;
+}
+
+/* The header buffer past the camera: the tree records and the sparse grids'
+ * trees (lu_scene_layout.h), made (again, when a sparse grid was replaced)
+ * at the size they need. */
+static size_t align32(uint64_t n) { return (size_t)((n + 31u) / 32u * 32u); }
+
+static lu_result upload_trees(lu_gpu_scene *gs, const lu_scene *scene, lu_error *err) {
+    uint64_t total = LU_SCENE_TREES_BYTE;
+    for (int m = 0; m < scene->medium_count; m++) {
+        if (!gs->sparse[m]) continue;
+        const lu_grid *g = &scene->media[m].grid;
+        lu_k_tree t = lu_grid_tree_view(g);
+        uint32_t tiles = pnanovdb_root_get_tile_count(t.buf, t.root);
+        if (tiles > LU_TREE_GPU_ROOT_TILES)
+            return lu_fail(err, LU_ERR_LIMIT,
+                           "gpu scene: grid \"%s\" has %u root tiles; the GPU reads at most %d (a box up to 4096 "
+                           "voxels a side, LU_TREE_GPU_ROOT_TILES): render this scene on the CPU",
+                           g->name, tiles, LU_TREE_GPU_ROOT_TILES);
+        total += align32(g->tree_bytes);
+    }
+    lu_gpu_info info;
+    lu_gpu_info_get(gs->ctx, &info);
+    if (total > (uint64_t)info.max_ssbo_size || total > UINT32_MAX)
+        return lu_fail(err, LU_ERR_LIMIT,
+                       "gpu scene: the sparse grids' trees need a %llu-byte storage buffer; this GPU's largest is "
+                       "%lld bytes (GL_MAX_SHADER_STORAGE_BLOCK_SIZE; lucent info --gpu): render this scene on the CPU",
+                       (unsigned long long)total, (long long)info.max_ssbo_size);
+    uint32_t table[LU_SCENE_TREE_TABLE + LU_SCENE_TREE_WORDS * LU_SCENE_MAX_MEDIA];
+    memset(table, 0, sizeof table);
+    size_t at = LU_SCENE_TREES_BYTE;
+    for (int m = 0; m < scene->medium_count; m++) {
+        if (!gs->sparse[m]) continue;
+        const lu_grid *g = &scene->media[m].grid;
+        uint32_t *t = table + LU_SCENE_TREE_TABLE + LU_SCENE_TREE_WORDS * m;
+        t[0] = (uint32_t)(at + lu_grid_tree_view(g).root.address.byte_offset);
+        for (int a = 0; a < 3; a++) t[1 + a] = (uint32_t)g->tree_lo[a];
+        t[4] = (uint32_t)g->nx, t[5] = (uint32_t)g->ny, t[6] = (uint32_t)g->nz;
+        t[7] = 1u;
+        at += align32(g->tree_bytes);
+    }
+    lu_result r = LU_OK;
+    if (gs->header && gs->header_bytes < total) {
+        lu_gpu_buffer_destroy(gs->header);
+        gs->header = NULL;
+    }
+    if (!gs->header) {
+        r = lu_gpu_buffer_create(gs->ctx, (size_t)total, NULL, &gs->header, err);
+        if (r != LU_OK) return r;
+        gs->header_bytes = (size_t)total;
+    }
+    r = lu_gpu_buffer_upload(gs->header, 0, table, sizeof table, err);
+    at = LU_SCENE_TREES_BYTE;
+    for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
+        if (!gs->sparse[m]) continue;
+        const lu_grid *g = &scene->media[m].grid;
+        r = lu_gpu_buffer_upload(gs->header, at, g->tree, (size_t)g->tree_bytes, err);
+        at += align32(g->tree_bytes);
+    }
     return r;
 }
 
@@ -190,10 +270,19 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
         gs->grid_dims[m][0] = med->grid.nx;
         gs->grid_dims[m][1] = med->grid.ny;
         gs->grid_dims[m][2] = med->grid.nz;
-        r = lu_gpu_texture3d_create(ctx, med->grid.nx, med->grid.ny, med->grid.nz, med->grid.data, &gs->grid[m], err);
+        gs->sparse[m] = medium_uses_tree(med);
+        if (!gs->sparse[m]) {
+            lu_grid dense = {0};
+            if (lu_grid_is_sparse(&med->grid)) r = lu_grid_densify(&med->grid, &dense, err);
+            if (r == LU_OK)
+                r = lu_gpu_texture3d_create(ctx, med->grid.nx, med->grid.ny, med->grid.nz,
+                                            dense.data ? dense.data : med->grid.data, &gs->grid[m], err);
+            lu_grid_destroy(&dense);
+        }
         if (r == LU_OK) r = lu_majorant_build(&med->grid, LU_SCENE_MAJORANT_BLOCK, &gs->maj[m], err);
         gs->grid_generation[m] = med->grid.generation;
     }
+    if (r == LU_OK) r = upload_trees(gs, scene, err);
     /* Buffers from the start, so that binding before the first frame's update is safe. */
     lu_frame_records rec = {0};
     if (r == LU_OK) r = lu_frame_records_update(&rec, scene, err);
@@ -214,6 +303,9 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_
     for (int m = 0; m < scene->medium_count; m++) {
         const lu_medium *med = &scene->media[m];
         bool grid = med->kind == LU_DENSITY_GRID;
+        /* A sparse grid may be replaced by another of any size (its tree is
+         * uploaded again); a dense one keeps its texture's size. */
+        if (grid && gs->sparse[m] && medium_uses_tree(med)) continue;
         if ((grid != (gs->grid[m] != NULL)) ||
             (grid && (med->grid.nx != gs->grid_dims[m][0] || med->grid.ny != gs->grid_dims[m][1] ||
                       med->grid.nz != gs->grid_dims[m][2])))
@@ -222,10 +314,21 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_
     /* Density edits (lu_grid_set_values, lu_grid_apply) give the grid a new
      * generation: its values go up again, the texture object stays. */
     lu_result r = LU_OK;
+    bool trees = false;
     for (int m = 0; m < scene->medium_count && r == LU_OK; m++) {
         const lu_grid *g = &scene->media[m].grid;
+        if (gs->sparse[m] && g->generation != gs->grid_generation[m]) {
+            trees = true;
+            lu_majorant_destroy(&gs->maj[m]);
+            r = lu_majorant_build(g, LU_SCENE_MAJORANT_BLOCK, &gs->maj[m], err);
+            if (r == LU_OK) gs->grid_generation[m] = g->generation;
+            continue;
+        }
         if (!gs->grid[m] || g->generation == gs->grid_generation[m]) continue;
-        r = lu_gpu_texture3d_upload(gs->grid[m], g->data, err);
+        lu_grid dense = {0};
+        if (lu_grid_is_sparse(g)) r = lu_grid_densify(g, &dense, err);
+        if (r == LU_OK) r = lu_gpu_texture3d_upload(gs->grid[m], dense.data ? dense.data : g->data, err);
+        lu_grid_destroy(&dense);
         /* Same block counts (same dims): the buffer keeps its size. */
         if (r == LU_OK) {
             lu_majorant_destroy(&gs->maj[m]);
@@ -233,6 +336,7 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_
         }
         if (r == LU_OK) gs->grid_generation[m] = g->generation;
     }
+    if (r == LU_OK && trees) r = upload_trees(gs, scene, err);
     return r == LU_OK ? upload_records(gs, scene, rec, err) : r;
 }
 

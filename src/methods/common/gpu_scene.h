@@ -55,6 +55,13 @@ lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu
  * of every grid whose generation changed (same media and grid sizes:
  * LU_ERR_INVALID_ARG if the medium count or a grid's size differs). */
 lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec, lu_error *err);
+/* The defines every program reading this scene is compiled with (prefix
+ * to a method's own): "#define LU_SCENE_TREES 1" when a medium goes to the
+ * GPU as a sparse tree, else "". A sparse grid whose dense box is at most
+ * the dense limit (256 MiB; lu_gpu_scene_set_dense_limit, for tests) goes
+ * as a texture of its dense expansion instead. */
+const char *lu_gpu_scene_defines(const lu_scene *scene);
+void lu_gpu_scene_set_dense_limit(uint64_t bytes);
 /* Binds the three buffers and the grid textures at their fixed points. */
 lu_result lu_gpu_scene_bind(lu_gpu_scene *gs, lu_error *err);
 void lu_gpu_scene_destroy(lu_gpu_scene *gs);

@@ -86,7 +86,7 @@ lu_result lu_media_rays_majorants(lu_media_rays *mr, const lu_frame *f, const lu
         lu_majorant_destroy(&mr->majorants[m]);
         const lu_medium *med = &scene->media[m];
         if (med->kind != LU_DENSITY_GRID) continue;
-        const lu_grid *g = dens && dens[m].data ? &dens[m] : &med->grid;
+        const lu_grid *g = dens && lu_grid_has_values(&dens[m]) ? &dens[m] : &med->grid;
         r = lu_majorant_build(g, LU_SCENE_MAJORANT_BLOCK, &mr->majorants[m], err);
     }
     if (r != LU_OK) return r;

@@ -43,7 +43,8 @@ uint64_t lu_ddod_key(const lu_scene *scene, const lu_ddod_params *p) {
         fnv_bytes(&f, &m->world_to_index, sizeof m->world_to_index);
         if (m->kind == LU_DENSITY_GRID) {
             fnv_bytes(&f, &m->grid.nx, 3 * sizeof(int));
-            fnv_bytes(&f, m->grid.data, (size_t)m->grid.nx * m->grid.ny * m->grid.nz * sizeof(float));
+            if (m->grid.data) fnv_bytes(&f, m->grid.data, (size_t)m->grid.nx * m->grid.ny * m->grid.nz * sizeof(float));
+            else fnv_bytes(&f, m->grid.tree, (size_t)m->grid.tree_bytes), fnv_bytes(&f, m->grid.tree_lo, sizeof m->grid.tree_lo);
         }
         if (m->has_boundary) fnv_mesh(&f, &m->boundary);
     }

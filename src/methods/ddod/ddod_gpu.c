@@ -3,6 +3,7 @@
  * uploaded once per sample set, the traced table when the camera or a
  * light moves, the pixel records and tile lists when ddod.c rebuilt them
  * (their versions in lu_ddod_frame). */
+#include <stdio.h>
 #include <stdlib.h>
 
 #include "backends/gpu.h"
@@ -26,8 +27,11 @@ lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error 
     lu_ddod_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
-    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/ddod/ddod.comp", "#define LU_DDOD_PASS 1\n", &g->pass1, err);
-    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/ddod/ddod.comp", "#define LU_DDOD_PASS 2\n", &g->pass2, err);
+    char defs[2][128];
+    for (int k = 0; k < 2; k++)
+        snprintf(defs[k], sizeof defs[k], "#define LU_DDOD_PASS %d\n%s", k + 1, lu_gpu_scene_defines(scene));
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/ddod/ddod.comp", defs[0], &g->pass1, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/ddod/ddod.comp", defs[1], &g->pass2, err);
     if (r == LU_OK) r = lu_gpu_scene_create(g->ctx, scene, &g->scene, err);
     if (r == LU_OK) {
         lu_gpu_info info;

@@ -31,7 +31,7 @@ struct lu_k_ctx {
 };
 
 static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) {
-    return c->dens[m].data ? lu_grid_sample(&c->dens[m], p) : c->km[m].density_scale;
+    return lu_grid_has_values(&c->dens[m]) ? lu_grid_sample(&c->dens[m], p) : c->km[m].density_scale;
 }
 static inline lu_vec3 lu_k_emission(const struct lu_k_ctx *c, int m, lu_vec3 p) {
     return lu_medium_emission(&c->media[m], p);
@@ -53,7 +53,7 @@ static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int
     return c->mr->spans[((size_t)pixel * c->nm + m) * 2 + end];
 }
 static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz) {
-    return c->dens[m].data ? lu_majorant_at(&c->mr->majorants[m], bx, by, bz) : c->km[m].density_scale;
+    return lu_grid_has_values(&c->dens[m]) ? lu_majorant_at(&c->mr->majorants[m], bx, by, bz) : c->km[m].density_scale;
 }
 static inline lu_k_gr_params lu_k_gr_get(const struct lu_k_ctx *c) { return c->G; }
 static inline lu_vec3 lu_k_gr_field(const struct lu_k_ctx *c, int i) {

@@ -86,11 +86,12 @@ void lu_gauss_splat(const lu_gauss *g, int count, lu_grid *out) {
 lu_result lu_gauss_fit_grid(const lu_grid *grid, int max_count, float max_radius, lu_gauss_fit *out, lu_error *err) {
     memset(out, 0, sizeof *out);
     double t0 = lu_time_seconds();
-    lu_result r = lu_grid_alloc(&out->residual, grid->nx, grid->ny, grid->nz, err);
+    /* The fit works on a dense residual, so a sparse grid is expanded here
+     * (docs/volumes.md: the gradient family's memory is per voxel of the box). */
+    lu_result r = lu_grid_densify(grid, &out->residual, err);
     if (r != LU_OK) return r;
     size_t nv = (size_t)grid->nx * grid->ny * grid->nz;
-    memcpy(out->residual.data, grid->data, nv * sizeof(float));
-    out->residual.index_to_world = grid->index_to_world;
+    const float *values = out->residual.data;
     out->g = lu_malloc((max_count > 0 ? (size_t)max_count : 1u) * sizeof *out->g);
     fit_state fs = {&out->residual, (grid->nx + BLOCK - 1) / BLOCK, (grid->ny + BLOCK - 1) / BLOCK,
                     (grid->nz + BLOCK - 1) / BLOCK, NULL};
@@ -106,8 +107,8 @@ lu_result lu_gauss_fit_grid(const lu_grid *grid, int max_count, float max_radius
     double norm2 = 0.0;
     float dmax = 0.0f;
     for (size_t i = 0; i < nv; i++) {
-        norm2 += (double)grid->data[i] * grid->data[i];
-        dmax = fmaxf(dmax, grid->data[i]);
+        norm2 += (double)values[i] * values[i];
+        dmax = fmaxf(dmax, values[i]);
     }
     static const float ladder[] = {1.0f, 1.5f, 2.0f, 3.0f, 4.0f, 6.0f, 8.0f, 12.0f, 16.0f};
     int maxdim = grid->nx > grid->ny ? grid->nx : grid->ny;

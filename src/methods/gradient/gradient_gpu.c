@@ -30,7 +30,7 @@ lu_result lu_gradient_gpu_create(const lu_scene *scene, lu_gradient_gpu **out, l
     lu_gradient_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory");
     lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
-    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/gradient/gradient.comp", NULL, &g->prog, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/gradient/gradient.comp", lu_gpu_scene_defines(scene), &g->prog, err);
     if (r == LU_OK) r = lu_gpu_scene_create(g->ctx, scene, &g->scene, err);
     if (r != LU_OK) {
         lu_gradient_gpu_destroy(g);

@@ -22,7 +22,7 @@ lu_result lu_raymarch_gpu_create(const lu_scene *scene, lu_raymarch_gpu **out, l
     lu_raymarch_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
-    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/raymarch/raymarch.comp", NULL, &g->prog, err);
+    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/raymarch/raymarch.comp", lu_gpu_scene_defines(scene), &g->prog, err);
     if (r == LU_OK) r = lu_gpu_scene_create(g->ctx, scene, &g->scene, err);
     if (r != LU_OK) {
         lu_raymarch_gpu_destroy(g);
