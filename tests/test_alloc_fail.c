@@ -256,6 +256,47 @@ static long sweep(const job *j, bool full) {
     return tried;
 }
 
+/* The scene loader under the same sweep: each load either succeeds or
+ * fails with LU_ERR_NOMEM and a message, and leaves nothing alive. cJSON,
+ * libpng, zlib and OpenEXR allocate on their own, outside the sweep. */
+static long sweep_load(const char *name, bool full) {
+    char path[512];
+    snprintf(path, sizeof path, LU_SOURCE_DIR "/scenes/%s.json", name);
+    lu_error err = {0};
+    lu_scene s;
+    atomic_store(&g_fail_at, 0);
+    CHECK_MSG(lu_scene_load(path, &s, &err) == LU_OK, "%s: %s", path, err.message); /* warm-up */
+    lu_scene_destroy(&s);
+    long live0 = atomic_load(&g_live);
+    atomic_store(&g_count, 0);
+    if (lu_scene_load(path, &s, &err) != LU_OK) return 0;
+    lu_scene_destroy(&s);
+    long total = atomic_load(&g_count), tried = 0, nomem = 0;
+    for (long k = 1; k <= total; k++) {
+        if (!full && k > 16 && (k - 16) % ((total - 16) / 16 + 1) != 0) continue;
+        atomic_store(&g_count, 0);
+        atomic_store(&g_fail_at, k);
+        lu_error e = {0};
+        lu_result r = lu_scene_load(path, &s, &e);
+        atomic_store(&g_fail_at, 0);
+        tried++;
+        if (r == LU_OK) lu_scene_destroy(&s);
+        else nomem++;
+        CHECK_MSG(r == LU_OK || r == LU_ERR_NOMEM, "load %s, allocation %ld/%ld: result %d (%s)", name, k, total,
+                  (int)r, e.message);
+        CHECK_MSG(r == LU_OK || e.message[0], "load %s, allocation %ld: failed without a message", name, k);
+        CHECK_MSG(atomic_load(&g_live) == live0, "load %s, allocation %ld/%ld: %ld blocks leaked", name, k, total,
+                  atomic_load(&g_live) - live0);
+        if (atomic_load(&g_live) != live0) {
+            print_leaks(name, live0);
+            live0 = atomic_load(&g_live);
+        }
+        if (lu_test_failures > 20) break;
+    }
+    fprintf(stderr, "  load %-14s %5ld allocations, %4ld failure points: %4ld LU_ERR_NOMEM\n", name, total, tried, nomem);
+    return tried;
+}
+
 static lu_scene *load(const char *name, int w, int h) {
     static lu_scene scenes[4];
     static int n;
@@ -281,9 +322,11 @@ int main(int argc, char **argv) {
 
     lu_scene *demo = load("demo", 24, 18);
     lu_scene *spheres = load("bssrdf_spheres", 24, 16);
+    lu_scene *sparse = load("sparse_cloud", 24, 16);
     const job jobs[] = {
         {"reference", "", demo},
         {"raymarch", "", demo},
+        {"raymarch", "", sparse},   /* a NanoVDB tree sampled in place */
         {"afm", "afm.map_res=32", demo},
         {"gradient", "", demo},
         {"pervoxel", "", demo},
@@ -294,9 +337,12 @@ int main(int argc, char **argv) {
         {"bssrdf", "bssrdf.splats=256", spheres},
     };
     long points = 0;
+    const char *loads[] = {"demo", "bssrdf_spheres", "sparse_cloud", "bunny_marble", "smoke_box"};
+    for (size_t i = 0; i < sizeof loads / sizeof loads[0]; i++) points += sweep_load(loads[i], full);
     for (size_t i = 0; i < sizeof jobs / sizeof jobs[0]; i++) points += sweep(&jobs[i], full);
     CHECK(points > 0);
     lu_scene_destroy(demo);
     lu_scene_destroy(spheres);
+    lu_scene_destroy(sparse);
     TEST_EXIT();
 }
