@@ -101,10 +101,13 @@ grep -q "ending the whole job" "$tmp/out.txt" || { echo "FAIL: a failing rank: t
 ls "$tmp"/f.pfm* >/dev/null 2>&1 && { echo "FAIL: a failing rank left an output"; ls "$tmp"; fail=1; }
 
 # Death: rank 1 is killed by SIGSEGV while it renders (exec keeps the pid
-# mpirun started, so the rank itself dies, not a shell around it).
+# mpirun started, so the rank itself dies, not a shell around it). The
+# render is far longer than the second before the kill (minutes of passes),
+# so the rank is always still rendering when it dies.
 rm -f "$tmp/pid"
-mpi -n 1 "$lucent" "${args[@]}" -o "$tmp/d.pfm" : \
-  -n 1 bash -c 'echo $$ >"$0/pid.tmp" && mv "$0/pid.tmp" "$0/pid" && exec "$@"' "$tmp" "$lucent" "${args[@]}" -o "$tmp/d.pfm" \
+long=(render "$scene" --method pathtrace --size 64x64 --set pathtrace.spp=100000)
+mpi -n 1 "$lucent" "${long[@]}" -o "$tmp/d.pfm" : \
+  -n 1 bash -c 'echo $$ >"$0/pid.tmp" && mv "$0/pid.tmp" "$0/pid" && exec "$@"' "$tmp" "$lucent" "${long[@]}" -o "$tmp/d.pfm" \
   >"$tmp/out.txt" 2>&1 &
 job=$!
 for _ in $(seq 100); do [ -f "$tmp/pid" ] && break; sleep 0.1; done
