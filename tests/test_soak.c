@@ -17,46 +17,9 @@
  * method: method,frame,lib_bytes,rss_kb), which docs/reliability.md plots. */
 #include "lu_test.h"
 
-#include <pthread.h>
-#include <stdatomic.h>
-#include <stddef.h>
+#include "lu_test_alloc.h"
 
 #define PERIOD 16
-
-typedef union header {
-    size_t size;
-    max_align_t align;
-} header;
-
-static atomic_llong g_bytes;
-
-static void *s_alloc(size_t size, void *user) {
-    (void)user;
-    header *h = malloc(sizeof(header) + size);
-    if (!h) return NULL;
-    h->size = size;
-    atomic_fetch_add(&g_bytes, (long long)size);
-    return h + 1;
-}
-
-static void *s_realloc(void *ptr, size_t size, void *user) {
-    if (!ptr) return s_alloc(size, user);
-    header *h = (header *)ptr - 1;
-    size_t old = h->size;
-    header *n = realloc(h, sizeof(header) + size);
-    if (!n) return NULL;
-    n->size = size;
-    atomic_fetch_add(&g_bytes, (long long)size - (long long)old);
-    return n + 1;
-}
-
-static void s_free(void *ptr, void *user) {
-    (void)user;
-    if (!ptr) return;
-    header *h = (header *)ptr - 1;
-    atomic_fetch_sub(&g_bytes, (long long)h->size);
-    free(h);
-}
 
 static void quiet_log(lu_log_level level, const char *message, void *user) {
     (void)level, (void)message, (void)user;
@@ -159,7 +122,8 @@ int main(int argc, char **argv) {
         fprintf(stderr, "test_soak: --frames must be at least %d and --size positive\n", 3 * PERIOD);
         return 2;
     }
-    lu_host host = {.alloc = s_alloc, .realloc = s_realloc, .free = s_free, .log = quiet_log};
+    lu_host host = k_test_alloc_host;
+    host.log = quiet_log;
     lu_error err = {0};
     CHECK(lu_host_set(&host, &err) == LU_OK);
     FILE *csv = csv_path ? fopen(csv_path, "w") : NULL;
