@@ -46,11 +46,13 @@ asan: setup
 	cd $(BUILD_ASAN) && ASAN_OPTIONS=detect_leaks=1:intercept_tls_get_addr=0 UBSAN_OPTIONS=print_stacktrace=1 LUCENT_ASAN=1 \
 	  ctest --output-on-failure -j $(JOBS)
 
-# Every libFuzzer target for FUZZ_SECONDS seconds (default 60) from the
-# committed corpus; installs clang and its fuzzer runtime first.
+# Every libFuzzer target for FUZZ_SECONDS seconds (default 60), or FUZZ_RUNS
+# executions if that comes first, from the committed corpus; installs clang
+# and its fuzzer runtime first.
 FUZZ_SECONDS ?= 60
+FUZZ_RUNS ?= -1
 fuzz: setup
-	FUZZ_SECONDS=$(FUZZ_SECONDS) scripts/fuzz.sh
+	FUZZ_SECONDS=$(FUZZ_SECONDS) FUZZ_RUNS=$(FUZZ_RUNS) scripts/fuzz.sh
 
 # Two renderers at once, and the worker pool, under ThreadSanitizer.
 # tests/tsan.supp lists the races it reports inside Mesa's llvmpipe, which

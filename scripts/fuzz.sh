@@ -1,15 +1,18 @@
 #!/usr/bin/env bash
-# Runs every libFuzzer target for FUZZ_SECONDS (default 60) seconds under
-# ASan+UBSan, starting from the committed corpus (fuzz/corpus/<target>/);
+# Runs every libFuzzer target for FUZZ_SECONDS (default 60) seconds, or until
+# FUZZ_RUNS executions if that is set and comes first, under ASan+UBSan,
+# starting from the committed corpus (fuzz/corpus/<target>/);
 # what a run adds to the corpus goes to out/fuzz/<target>/ (merge the small,
 # new files into fuzz/corpus by hand with -merge=1). Prints, per target, the
 # executions, the edge coverage and whether it crashed. clang and its fuzzer
 # runtime are installed here (as root), not by `make test`.
-# Usage: scripts/fuzz.sh [TARGET...]   (env FUZZ_SECONDS, JOBS)
+# Usage: scripts/fuzz.sh [TARGET...]   (env FUZZ_SECONDS, FUZZ_RUNS, JOBS)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${FUZZ_SECONDS:-60}
 [[ $seconds =~ ^[0-9]+$ && $seconds -ge 1 ]] || { echo "fuzz: FUZZ_SECONDS must be a positive integer" >&2; exit 2; }
+runs=${FUZZ_RUNS:--1}
+[[ $runs == -1 || ( $runs =~ ^[0-9]+$ && $runs -ge 1 ) ]] || { echo "fuzz: FUZZ_RUNS must be a positive integer" >&2; exit 2; }
 need=()
 command -v clang >/dev/null || need+=(clang)
 dpkg-query -W -f='${Status}' libclang-rt-14-dev 2>/dev/null | grep -q "install ok installed" || need+=(libclang-rt-14-dev)
@@ -28,12 +31,13 @@ targets=("$@")
 ((${#targets[@]})) || targets=($(ls fuzz/fuzz_*.c | xargs -n1 basename | sed 's/\.c$//'))
 cmake --build "$build" -j "${JOBS:-$(nproc)}" --target "${targets[@]}" -- --no-print-directory >/dev/null
 status=0
-printf '%-12s %12s %8s %8s  %s\n' target executions exec/s edges result
+printf '%-12s %12s %8s %8s %8s  %s\n' target executions exec/s edges seconds result
 for t in "${targets[@]}"; do
   mkdir -p "out/fuzz/$t"
   log="out/fuzz/$t.log"
+  start=$SECONDS
   set +e
-  (cd "out/fuzz" && ASAN_OPTIONS=detect_leaks=1 "../../$build/$t" -max_total_time="$seconds" -rss_limit_mb=4096 \
+  (cd "out/fuzz" && ASAN_OPTIONS=detect_leaks=1 "../../$build/$t" -max_total_time="$seconds" -runs="$runs" -rss_limit_mb=4096 \
      -timeout=20 -print_final_stats=1 "$t" "../../fuzz/corpus/$t") >"$log" 2>&1
   rc=$?
   set -e
@@ -42,6 +46,6 @@ for t in "${targets[@]}"; do
   edges=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | awk '{print $2}')
   result=ok
   [[ $rc -eq 0 ]] || { result="CRASH (see $log)"; status=1; }
-  printf '%-12s %12s %8s %8s  %s\n' "$t" "${execs:-?}" "${speed:-?}" "${edges:-?}" "$result"
+  printf '%-12s %12s %8s %8s %8s  %s\n' "$t" "${execs:-?}" "${speed:-?}" "${edges:-?}" "$((SECONDS - start))" "$result"
 done
 exit $status
