@@ -285,7 +285,7 @@ lu_vec3 lu_afm_map_transmittance(const lu_afm_map *map, int l, lu_vec3 x) {
 
 /* ---- the method ---- */
 
-enum { P_COEFS, P_SAMPLES, P_MAP_RES, P_STEPS, P_JITTER, P_SHADOW_RES, P_T_CUT, P_COUNT };
+enum { P_COEFS, P_SAMPLES, P_MAP_RES, P_STEPS, P_JITTER, P_SHADOW_RES, P_T_CUT, P_MS, P_COUNT = P_MS + LU_VIEW_MARCH_MS_PARAM_COUNT };
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_COEFS] = {"coefs", LU_PARAM_INT, 16, 1, LU_K_AFM_MAX_COEFS, NULL,
@@ -301,12 +301,14 @@ static const lu_param_desc k_params[P_COUNT] = {
     [P_SHADOW_RES] = {"shadow_res", LU_PARAM_INT, 512, 16, 4096, NULL,
                       "shadow map resolution per light view (opaque objects)"},
     [P_T_CUT] = LU_VIEW_MARCH_T_CUT_PARAM,
+    LU_VIEW_MARCH_MS_PARAMS(P_MS)
 };
 
 typedef struct afm_state {
     lu_backend backend;
     int steps, jitter;
     float t_cut;
+    lu_k_ms ms;
     lu_media_rays mr;
     lu_afm_map map;
     float *surfaces;
@@ -338,6 +340,7 @@ static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_bac
     st->steps = (int)params[P_STEPS];
     st->jitter = (int)params[P_JITTER];
     st->t_cut = (float)params[P_T_CUT];
+    st->ms = lu_view_march_ms(params + P_MS);
     int res = (int)params[P_MAP_RES];
     if (res == 0) res = backend == LU_BACKEND_GPU ? 512 : 256;
     lu_result r = LU_OK;
@@ -379,7 +382,8 @@ static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_bac
          * (steps x lights x (series in fours + PCF and medium loops)) and
          * the build (samples x (series in fours + medium loops) + DDA). */
         int quads = (st->map.coefs + 2) / 4 + 1, nlights = lu_afm_view_count(scene) ? scene->light_count : 0;
-        double march = (double)st->steps * (1 + nlights * (4 * quads + 10 + 2 * scene->medium_count));
+        double march = (double)st->steps *
+                       (1 + nlights * (4 * quads + 10 + (2 + st->ms.octaves + 1) * scene->medium_count));
         double build = (double)st->map.samples * (quads + 2 + 2 * scene->medium_count) + 1024.0;
         if (r == LU_OK && loop_cap && (march > 65000 || build > 65000))
             r = lu_fail(err, LU_ERR_LIMIT,
@@ -442,9 +446,10 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
 
     lu_view_march_frame *f = &st->frame;
     lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl, st->t_cut);
+    f->ms = st->ms;
     if (st->backend == LU_BACKEND_GPU) {
         lu_afm_gpu_frame g = {frame->rec, &st->mr, &st->map, st->surfaces, st->surfaces_version, scene->background, f->step,
-                              f->eps, st->jitter, st->mr.shadow_res, nl, st->t_cut};
+                              f->eps, st->jitter, st->mr.shadow_res, nl, st->t_cut, st->ms};
         r = lu_afm_gpu_render(st->gpu, scene, &g, out, err);
         if (r == LU_OK) lu_afm_map_built(&st->map, frame);
         return r;

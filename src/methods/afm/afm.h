@@ -86,6 +86,7 @@ typedef struct lu_afm_gpu_frame {
     float step, eps;
     int jitter, shadow_res, nl;
     float t_cut;                /* view march early termination (lu_view_march.h) */
+    lu_k_ms ms;                 /* multiple-scattering octaves (lu_ms.h) */
 } lu_afm_gpu_frame;
 
 lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *err);

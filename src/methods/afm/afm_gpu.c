@@ -154,6 +154,7 @@ lu_result lu_afm_gpu_render(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_g
     lu_gpu_uniform_float(p, "u_eps", f->eps);
     lu_gpu_uniform_int(p, "u_jitter", f->jitter);
     lu_gpu_uniform_float(p, "u_t_cut", f->t_cut);
+    lu_gpu_uniform_vec4(p, "u_ms", (float)f->ms.octaves, f->ms.a, f->ms.b, f->ms.c);
     lu_gpu_uniform_vec3(p, "u_background", f->background.x, f->background.y, f->background.z);
     const int rows = 64;
     for (int y0 = 0; y0 < h && r == LU_OK; y0 += rows) {

@@ -56,6 +56,7 @@ void main() {
     R.jitter = u_jitter;
     R.map_res = u_map_res;
     R.t_cut = u_t_cut;
+    R.ms = lu_rm_ms_uniform();
     int px = y * w + x;
     vec3 d = lu_k_camera_dir(lu_scene_camera(), float(x) + 0.5, float(y) + 0.5);
     vec3 L = lu_k_afm_radiance(0, lu_k_afm_params_get(0), R, px, lu_scene_camera_position(), d, lu_k_rm_jitter(R.jitter, px));

@@ -50,6 +50,11 @@
  *     A march that ends with T < t_cut drops its end term by the same rule.
  *     t_cut = 0 is the full march.
  *
+ * Multiple scattering, when P.ms asks for it, is approximated by
+ * Wrenninge's octaves in the in-scattering (lu_ms.h, lu_k_rm_inscatter_ms;
+ * docs/multiple-scattering.md); the early-termination bound then holds with
+ * the octaves' sum in place of the phase.
+ *
  * Simplifications against the reference (stated in docs/gpu.md): shadow rays
  * clip media to their world boxes, not to boundary meshes, and carry no
  * Fresnel factor; boundary reflection and environment lights are not
@@ -63,6 +68,7 @@
 #include "lu_march.h"
 #include "lu_march_blocks.h"
 #include "kernels/lu_medium.h"
+#include "lu_ms.h"
 #include "lu_near_light.h"
 #include "kernels/lu_optics.h"
 #include "lu_shadowmap.h"
@@ -115,6 +121,7 @@ struct lu_k_rm_params {
     int jitter;        /* 1: each pixel's samples shifted by a hash in [0, 1) of a step */
     int map_res;       /* shadow map resolution */
     float t_cut;       /* early termination: stop once the view transmittance is below this (0: never) */
+    lu_k_ms ms;        /* multiple-scattering octaves of the in-scattering (lu_ms.h; octaves 1: off) */
 };
 LU_TYPEDEF(lu_k_rm_params)
 
@@ -180,11 +187,16 @@ LU_FN float lu_k_rm_visibility(LU_CTX_PARAM, int l, vec3 x, vec3 n, int res) {
  * step's extinction): sum over media and lights of sigma_s D phase E T V,
  * the step covering x + s d for s in [sa, sb] (point and spot lights take
  * the step's mean of 1/d^2, lu_k_rm_near_light). dens[m]: medium m's
- * density at x. A method that precomputes the source term (gradient: a
- * radiance grid) defines LU_K_RM_INSCATTER to its own lookup before
- * including this file; the march stays this one. */
-LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float sa, float sb,
-                                   float dens[LU_K_RM_MAX_MEDIA], int nm) {
+ * density at x. With ms.octaves > 1 each (light, medium) pair adds the
+ * octaves above the first (lu_ms.h): the transmittance T to the light,
+ * whichever estimate LU_K_RM_LIGHT_TR gives, is raised to a^i, so afm's map
+ * lookup takes the octaves as the exact shadow ray does. The single-
+ * scattering term is computed as without octaves (N = 1 is bit-identical).
+ * A method that precomputes the source term (gradient: a radiance grid)
+ * defines LU_K_RM_INSCATTER(ctx, P, x, d, sa, sb, dens, nm) to its own
+ * lookup before including this file; the march stays this one. */
+LU_FN vec3 lu_k_rm_inscatter_ms(LU_CTX_PARAM, int map_res, lu_k_ms ms, vec3 x, vec3 d, float sa, float sb,
+                                float dens[LU_K_RM_MAX_MEDIA], int nm) {
     vec3 S = lu_v3s(0.0f);
     int nl = lu_k_light_count(LU_CTX);
     for (int l = 0; l < nl; l++) {
@@ -195,18 +207,29 @@ LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, fl
             ls.irradiance = lu_v3_scale(ls.irradiance, lu_k_rm_near_light(lk.position, x, d, sa, sb));
         float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), map_res);
         if (vis <= 0.0f) continue;
-        vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, LU_K_RM_LIGHT_TR(l, x, ls)), vis);
+        vec3 Tl = LU_K_RM_LIGHT_TR(l, x, ls);
+        vec3 E = lu_v3_scale(lu_v3_mul(ls.irradiance, Tl), vis);
+        vec3 E0 = lu_v3_scale(ls.irradiance, vis);
         float cos_t = lu_v3_dot(d, ls.wl);
         for (int m = 0; m < nm; m++) {
             if (dens[m] <= 0.0f) continue;
             lu_k_medium md = lu_k_medium_get(LU_CTX, m);
             S = lu_v3_add(S, lu_v3_scale(lu_v3_mul(md.sigma_s, E), dens[m] * lu_k_phase_hg(cos_t, md.g)));
+            if (ms.octaves > 1)
+                S = lu_v3_add(S, lu_v3_mul(lu_v3_scale(lu_v3_mul(md.sigma_s, E0), dens[m]),
+                                           lu_k_ms_extra(ms, cos_t, md.g, Tl)));
         }
     }
     return S;
 }
+
+/* Single scattering alone (no octaves), for callers outside the march. */
+LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float sa, float sb,
+                                   float dens[LU_K_RM_MAX_MEDIA], int nm) {
+    return lu_k_rm_inscatter_ms(LU_CTX, map_res, lu_k_ms_make(1, 1.0f, 1.0f, 1.0f), x, d, sa, sb, dens, nm);
+}
 #ifndef LU_K_RM_INSCATTER
-#define LU_K_RM_INSCATTER lu_k_rm_inscatter_exact
+#define LU_K_RM_INSCATTER(ctx, P, x, d, sa, sb, dens, nm) lu_k_rm_inscatter_ms(ctx, P.map_res, P.ms, x, d, sa, sb, dens, nm)
 #endif
 
 /* Range [t0, t1] of medium m on the camera ray of `pixel`, clipped to [0, t_end]. */
@@ -315,7 +338,7 @@ LU_FN int lu_k_rm_segment(LU_CTX_PARAM, lu_k_rm_params P, int pixel, vec3 o, vec
         }
         if (lu_k_rm_maxc(sig_t) <= 0.0f) continue;
         vec3 S = lu_v3s(0.0f);
-        if (scatters) S = LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, -u * h, (1.0f - u) * h, dens, nm);
+        if (scatters) S = LU_K_RM_INSCATTER(LU_CTX, P, x, d, -u * h, (1.0f - u) * h, dens, nm);
         if (emits) S = lu_v3_add(S, Se);
         /* The step's in-scattering weight, the integral of exp(-sigma s)
          * over [0, h] = h (1 - exp(-x)) / x with x = sigma h (series for

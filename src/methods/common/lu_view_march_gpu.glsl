@@ -10,10 +10,15 @@ layout(std430, binding = LU_SCENE_BINDING_FREE + 2) readonly buffer Views { vec4
 layout(std430, binding = LU_SCENE_BINDING_FREE + 3) readonly buffer ViewTable { int rm_view_table[]; };
 layout(std430, binding = LU_SCENE_BINDING_FREE + 4) readonly buffer Shadow { float rm_shadow[]; };
 #include "lu_lightview_gpu.glsl"
+#include "lu_ms.h"
 
 #define LU_RM_BINDING_NEXT (LU_SCENE_BINDING_FREE + 5)
 
 uniform int u_map_res;
+/* lu_k_rm_params.ms: octaves, a, b, c (lu_ms.h) */
+uniform vec4 u_ms;
+
+lu_k_ms lu_rm_ms_uniform() { return lu_k_ms_make(int(u_ms.x), u_ms.y, u_ms.z, u_ms.w); }
 
 float lu_k_shadow_depth(LU_CTX_PARAM, int map, int i, int j) { return rm_shadow[(map * u_map_res + j) * u_map_res + i]; }
 int lu_k_rm_view_first(LU_CTX_PARAM, int l) { return rm_view_table[2 * l]; }

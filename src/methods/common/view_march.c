@@ -38,6 +38,7 @@ void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, con
     f->vis_version = mr->vis_version;
     f->max_steps = steps;
     f->t_cut = t_cut;
+    f->ms = lu_k_ms_make(1, 1.0f, 1.0f, 1.0f);
     f->majorants = mr->majorants;
 }
 
@@ -56,5 +57,11 @@ lu_k_rm_params lu_view_march_frame_params(const lu_view_march_frame *f) {
     P.jitter = f->jitter;
     P.map_res = f->map_res;
     P.t_cut = f->t_cut;
+    P.ms = f->ms;
     return P;
+}
+
+lu_k_ms lu_view_march_ms(const double *p) {
+    if ((int)p[0] == 0) return lu_k_ms_make(1, 1.0f, 1.0f, 1.0f);
+    return lu_k_ms_make((int)p[1], (float)p[2], (float)p[3], (float)p[4]);
 }

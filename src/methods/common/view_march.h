@@ -12,6 +12,7 @@
 #include "kernels/lu_medium.h"
 #include "kernels/lu_optics.h"
 #include "methods/common/media_ray.h"
+#include "methods/common/lu_ms.h"
 
 /* Loop iterations one GPU invocation may run: Mesa's llvmpipe ends every
  * loop of an invocation after 65535 in total (tests/test_gpu.c), so the GPU
@@ -25,6 +26,7 @@ typedef struct lu_view_march_frame {
     float step, eps;
     int jitter, map_res;
     float t_cut;                     /* early termination bound (lu_view_march.h) */
+    lu_k_ms ms;                      /* multiple-scattering octaves (lu_ms.h); fill sets them off */
     int medium_count, light_count;   /* light_count: non-environment lights */
     const float *hits;               /* width*height*LU_K_RM_HIT_FLOATS */
     const float *spans;              /* width*height*medium_count*2 */
@@ -51,6 +53,30 @@ void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, con
     {"t_cut", LU_PARAM_FLOAT, 1e-3, 0, 1, NULL,                                                                       \
      "early termination: the view march stops once the camera ray's transmittance is below this; the radiance "      \
      "left out is at most t_cut times the largest radiance beyond (0: march to the end)"}
+
+/* The multiple-scattering settings every view-march method takes, at
+ * parameter indices first .. first + LU_VIEW_MARCH_MS_PARAM_COUNT - 1 of its
+ * table (docs/multiple-scattering.md; defaults from the fit there). */
+#define LU_VIEW_MARCH_MS_PARAM_COUNT 5
+#define LU_VIEW_MARCH_MS_PARAMS(first)                                                                                \
+    [(first)] = {"ms", LU_PARAM_CHOICE, 0, 0, 1, "off|octaves",                                                       \
+                 "multiple scattering: off (single scattering) or Wrenninge's octaves (docs/multiple-scattering.md)"}, \
+    [(first) + 1] = {"ms_octaves", LU_PARAM_INT, LU_VIEW_MARCH_MS_N, 1, 16, NULL,                                     \
+                     "ms=octaves: number of octaves N (1: single scattering)"},                                        \
+    [(first) + 2] = {"ms_a", LU_PARAM_FLOAT, LU_VIEW_MARCH_MS_A, 0.01, 1, NULL,                                       \
+                     "ms=octaves: octave i sees the extinction towards the light scaled by a^i"},                     \
+    [(first) + 3] = {"ms_b", LU_PARAM_FLOAT, LU_VIEW_MARCH_MS_B, 0, 1, NULL,                                          \
+                     "ms=octaves: octave i contributes b^i"},                                                         \
+    [(first) + 4] = {"ms_c", LU_PARAM_FLOAT, LU_VIEW_MARCH_MS_C, 0, 1, NULL,                                          \
+                     "ms=octaves: octave i has phase eccentricity c^i g"},
+#define LU_VIEW_MARCH_MS_N 3
+#define LU_VIEW_MARCH_MS_A 0.5
+#define LU_VIEW_MARCH_MS_B 0.5
+#define LU_VIEW_MARCH_MS_C 0.5
+
+/* The octave record of the values at params[first ..] (LU_VIEW_MARCH_MS_PARAMS):
+ * one octave (single scattering) when ms = off. */
+lu_k_ms lu_view_march_ms(const double *params_first);
 
 /* Upper bound of the loop iterations one shadow ray through medium k takes
  * in the view march (lu_k_optical_depth_blocks), for GPU segment sizes. */

@@ -165,6 +165,7 @@ static void march_rows(void *ctx, int64_t begin, int64_t end, int thread) {
     P.jitter = 0;
     P.map_res = st->kctx.G.map_res;
     P.t_cut = st->frame.t_cut;
+    P.ms = st->kctx.G.ms; /* unused: the octaves are in the radiance grid */
     for (int64_t y = begin; y < end; y++)
         for (int x = 0; x < c->width; x++) {
             int px = (int)(y * c->width + x);
@@ -247,6 +248,7 @@ lu_result lu_gr_render(void *state, const lu_frame *frame, lu_image *out, lu_err
     G.surf_normals_at = 8 * st->nm;
     G.surf_vis_at = G.surf_normals_at + c->width * c->height * st->nm * LU_MR_NORMAL_FLOATS;
     G.reflect = 0;
+    G.ms = lu_view_march_ms(st->p + P_MS);
     for (int m = 0; m < st->nm; m++) {
         const lu_material *sm = &scene->media[m].surface;
         float *q = st->surf + 8 * m;

@@ -105,6 +105,7 @@ void main() {
         P.jitter = 0;
         P.map_res = G.map_res;
         P.t_cut = u_t_cut;
+        P.ms = G.ms; /* unused: the octaves are in the radiance grid */
         vec3 d = lu_k_camera_dir(lu_scene_camera(), float(x) + 0.5, float(y) + 0.5);
         vec3 L = lu_k_gr_radiance(0, P, i, lu_scene_camera_position(), d);
         gr_out[3 * i] = L.x;

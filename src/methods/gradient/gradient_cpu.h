@@ -81,7 +81,8 @@ _Static_assert(LU_K_RM_MAX_MEDIA == 8, "lu_k_gr_inscatter takes dens[8]");
 
 /* ---- parameters: pervoxel's are the first P_PERVOXEL_COUNT ---- */
 enum {
-    P_STEPS, P_SHADOW_RES, P_GRID, P_DELTA1, P_NORMALIZE, P_T_CUT, P_PERVOXEL_COUNT,
+    P_STEPS, P_SHADOW_RES, P_GRID, P_DELTA1, P_NORMALIZE, P_T_CUT, P_MS,
+    P_PERVOXEL_COUNT = P_MS + LU_VIEW_MARCH_MS_PARAM_COUNT,
     P_GAUSSIANS = P_PERVOXEL_COUNT, P_MAX_RADIUS, P_SEEDS, P_DELTA2, P_LEVELS, P_EPSILON, P_COUNT
 };
 

@@ -25,7 +25,8 @@
     [P_NORMALIZE] = {"normalize", LU_PARAM_CHOICE, 2, 0, 2, "none|falloff|emission",                                  \
                      "none: interpolate J as in the paper; falloff: J / (phase I/d^2); emission: J / (phase times "   \
                      "what the light emits, spot cone included), multiplied back per march step (extensions)"},   \
-    [P_T_CUT] = LU_VIEW_MARCH_T_CUT_PARAM,
+    [P_T_CUT] = LU_VIEW_MARCH_T_CUT_PARAM,                                                                       \
+    LU_VIEW_MARCH_MS_PARAMS(P_MS)
 
 static const lu_param_desc k_params_pervoxel[P_PERVOXEL_COUNT] = {GR_COMMON_PARAMS};
 

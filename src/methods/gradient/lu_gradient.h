@@ -211,7 +211,7 @@ LU_FN vec3 lu_k_gr_light_transmittance(LU_CTX_PARAM, int l, vec3 x, vec3 wl, flo
 /* The march uses this source term only when lu_view_march.h was not included
  * before (a driver includes lu_gradient.h alone). */
 #ifndef LU_RAYMARCH_H
-#define LU_K_RM_INSCATTER lu_k_gr_inscatter
+#define LU_K_RM_INSCATTER(ctx, P, x, d, sa, sb, dens, nm) lu_k_gr_inscatter(ctx, P.map_res, x, d, sa, sb, dens, nm)
 #define LU_K_RM_LIGHT_TR(l, x, ls) lu_k_gr_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist)
 /* Camera-visible surfaces take the exact visibility the CPU traced per pixel
  * and light (methods/common/media_ray.h), as in raymarch and afm: a shadow map leaks
@@ -264,13 +264,19 @@ LU_FN vec3 lu_k_gr_field_at(LU_CTX_PARAM, lu_k_gr_params G, vec3 x) {
         bool lit = lu_v3_maxc(ls.irradiance) > 0.0f;
         if (!lit && (G.normalize != 2 || lu_v3_maxc(w) > 0.0f)) continue;
         float vis = lu_k_rm_visibility(LU_CTX, l, x, lu_v3s(0.0f), G.map_res);
-        vec3 T = lu_v3s(0.0f);
-        if (vis > 0.0f)
-            T = lu_v3_scale(G.delta1 > 0.0f ? lu_k_gr_transmittance(LU_CTX, x, ls.wl, ls.dist, G.delta1)
-                                            : lu_k_gr_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist),
-                            vis);
+        vec3 Tl = lu_v3s(0.0f), T = lu_v3s(0.0f);
+        if (vis > 0.0f) {
+            Tl = G.delta1 > 0.0f ? lu_k_gr_transmittance(LU_CTX, x, ls.wl, ls.dist, G.delta1)
+                                 : lu_k_gr_light_transmittance(LU_CTX, l, x, ls.wl, ls.dist);
+            T = lu_v3_scale(Tl, vis);
+        }
         A = lu_v3_add(A, T);
-        J = lu_v3_add(J, lu_v3_scale(lu_v3_mul(ls.irradiance, T), lu_k_phase_hg(lu_v3_dot(d, ls.wl), G.g)));
+        float cos_t = lu_v3_dot(d, ls.wl);
+        J = lu_v3_add(J, lu_v3_scale(lu_v3_mul(ls.irradiance, T), lu_k_phase_hg(cos_t, G.g)));
+        /* Multiple-scattering octaves (lu_ms.h) on the transmittance alone,
+         * as lu_k_rm_inscatter_ms does: visibility is not raised to a^i. */
+        if (G.ms.octaves > 1 && vis > 0.0f)
+            J = lu_v3_add(J, lu_v3_mul(lu_v3_scale(ls.irradiance, vis), lu_k_ms_extra(G.ms, cos_t, G.g, Tl)));
     }
     if (G.normalize == 0) return J;
     float inv = 1.0f / lu_max(lu_float(nl), 1.0f);

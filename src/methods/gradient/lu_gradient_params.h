@@ -4,6 +4,7 @@
 #define LU_GRADIENT_PARAMS_H
 
 #include "kernels/lu_kernel.h"
+#include "methods/common/lu_ms.h"
 
 LU_CONST int LU_K_GR_GRADIENT = 0;
 LU_CONST int LU_K_GR_RBF = 1;
@@ -30,6 +31,7 @@ struct lu_k_gr_params {
     int reflect;       /* 1: add the boundary reflection where camera rays enter bounded media */
     int surf_vis_at;   /* lu_k_gr_surf (GPU): where the per-pixel, per-light surface visibility starts */
     int pad1;
+    lu_k_ms ms;        /* multiple-scattering octaves of the source radiance J (lu_ms.h; octaves 1: off) */
 };
 LU_TYPEDEF(lu_k_gr_params)
 

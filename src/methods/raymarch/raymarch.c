@@ -36,7 +36,7 @@ static inline float lu_k_rm_surface_vis(const struct lu_k_ctx *c, int pixel, int
 
 #include "methods/common/lu_view_march.h"
 
-enum { P_STEPS, P_JITTER, P_SHADOW_RES, P_T_CUT, P_COUNT };
+enum { P_STEPS, P_JITTER, P_SHADOW_RES, P_T_CUT, P_MS, P_COUNT = P_MS + LU_VIEW_MARCH_MS_PARAM_COUNT };
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_STEPS] = {"steps", LU_PARAM_INT, 256, 4, 16384, NULL,
@@ -46,12 +46,14 @@ static const lu_param_desc k_params[P_COUNT] = {
     [P_SHADOW_RES] = {"shadow_res", LU_PARAM_INT, 512, 16, 4096, NULL,
                       "shadow map resolution per light view (opaque objects only; media use exact optical depth)"},
     [P_T_CUT] = LU_VIEW_MARCH_T_CUT_PARAM,
+    LU_VIEW_MARCH_MS_PARAMS(P_MS)
 };
 
 typedef struct rm_state {
     lu_backend backend;
     int steps, jitter, res;
     float t_cut;
+    lu_k_ms ms;
     lu_media_rays mr;          /* camera hits/spans, light views, shadow maps */
     float eps;
     lu_view_march_frame frame;
@@ -81,6 +83,7 @@ static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_back
     st->jitter = (int)params[P_JITTER];
     st->res = (int)params[P_SHADOW_RES];
     st->t_cut = (float)params[P_T_CUT];
+    st->ms = lu_view_march_ms(params + P_MS);
     lu_result r = LU_OK;
     if (scene->medium_count > LU_K_RM_MAX_MEDIA)
         r = lu_fail(err, LU_ERR_LIMIT, "raymarch: %d media (at most %d)", scene->medium_count, LU_K_RM_MAX_MEDIA);
@@ -131,6 +134,7 @@ static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu
 
     lu_view_march_frame *f = &st->frame;
     lu_view_march_frame_fill(f, scene, &st->mr, st->steps, st->eps, st->jitter, nl, st->t_cut);
+    f->ms = st->ms;
     if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, frame->rec, f, out, err);
     st->kctx = (struct lu_k_ctx){LU_K_CTX_SCENE(scene, frame->rec), f, st->mr.views};
     lu_frame_for_rows(frame, 1, render_rows, st, NULL);

@@ -42,6 +42,7 @@ void main() {
     P.jitter = u_jitter;
     P.map_res = u_map_res;
     P.t_cut = u_t_cut;
+    P.ms = lu_rm_ms_uniform();
     int px = y * w + x;
     vec3 d = lu_k_camera_dir(lu_scene_camera(), float(x) + 0.5, float(y) + 0.5);
     vec3 o = lu_scene_camera_position();

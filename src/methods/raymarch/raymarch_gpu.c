@@ -82,6 +82,7 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
     lu_gpu_uniform_float(g->prog, "u_eps", f->eps);
     lu_gpu_uniform_int(g->prog, "u_jitter", f->jitter);
     lu_gpu_uniform_float(g->prog, "u_t_cut", f->t_cut);
+    lu_gpu_uniform_vec4(g->prog, "u_ms", (float)f->ms.octaves, f->ms.a, f->ms.b, f->ms.c);
     lu_gpu_uniform_vec3(g->prog, "u_background", f->background.x, f->background.y, f->background.z);
     /* Steps per dispatch: an upper bound of the loop iterations one step runs
      * (llvmpipe counts each pass through a loop body plus one per loop
@@ -94,7 +95,7 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
     long nm = f->medium_count;
     long per_step = 4 + 6 * nm;
     for (int l = 0; l < f->light_count; l++) {
-        per_step += 12 + 6 * nm;
+        per_step += 12 + 6 * nm + (long)(f->ms.octaves + 1) * nm; /* + the octave loop per medium */
         for (int m = 0; m < scene->medium_count; m++) per_step += lu_view_march_shadow_iterations(&rec->media[m]);
     }
     int seg = (int)(LU_RM_LOOP_BUDGET / per_step) - 1;
