@@ -3,7 +3,8 @@
 (docs/multiple-scattering.md). Python 3 standard library only.
 
   scripts/ms_fit.py truths [--spp 256]      render the pathtrace truths (half the camera size) into TRUTHS
-  scripts/ms_fit.py fit [--method raymarch]  grid search of N, a, b, c on the fit scenes
+  scripts/ms_fit.py fit [--method raymarch] [--grid "N=2,3 a=0.5,0.75 b=0.2 c=0.5"]
+                                            grid search of N, a, b, c on the fit scenes (default grid: GRID)
   scripts/ms_fit.py table --ms "N a b c"     rel-L2 table on the report scenes (ms=off vs octaves)
 
 Every comparison is `lucent compare IMAGE TRUTH --block 8`: 8x8 block averages,
@@ -81,14 +82,19 @@ def cmd_truths(a):
 
 
 def cmd_fit(a):
+    grid = dict(GRID)
+    for item in (a.grid or "").split():
+        k, v = item.split("=")
+        grid[k] = [int(x) if k == "N" else float(x) for x in v.split(",")]
+    scenes = a.scenes.split(",") if a.scenes else FIT_SCENES
     out_dir = os.environ.get("OUT") or tempfile.mkdtemp(prefix="ms_fit")
-    base = {s: compare(render(out_dir, s, a.method, None), s)["rel_l2"] for s in FIT_SCENES}
-    print("ms=off: " + " ".join("%s %.4f" % (s, base[s]) for s in FIT_SCENES), flush=True)
+    base = {s: compare(render(out_dir, s, a.method, None), s)["rel_l2"] for s in scenes}
+    print("ms=off: " + " ".join("%s %.4f" % (s, base[s]) for s in scenes), flush=True)
     rows = []
-    for n, av, bv, cv in itertools.product(GRID["N"], GRID["a"], GRID["b"], GRID["c"]):
+    for n, av, bv, cv in itertools.product(grid["N"], grid["a"], grid["b"], grid["c"]):
         ms = (n, av, bv, cv)
         errs = []
-        for s in FIT_SCENES:
+        for s in scenes:
             img = render(out_dir, s, a.method, ms)
             errs.append(compare(img, s)["rel_l2"])
             os.remove(img)
@@ -97,9 +103,13 @@ def cmd_fit(a):
         print("N=%d a=%g b=%g c=%g  %s  mean %.4f" % (n, av, bv, cv, " ".join("%.4f" % e for e in errs), score),
               flush=True)
     rows.sort(key=lambda r: r[0])
-    print("\nbest 5 (mean block-8 rel-L2 over %s):" % ", ".join(FIT_SCENES))
+    print("\nbest 5 (mean block-8 rel-L2 over %s):" % ", ".join(scenes))
     for score, ms, errs in rows[:5]:
         print("  N=%d a=%g b=%g c=%g  %s  mean %.4f" % (ms + (" ".join("%.4f" % e for e in errs), score)))
+    print("\nbest per scene:")
+    for k, s in enumerate(scenes):
+        score, ms, errs = min(rows, key=lambda r: r[2][k])
+        print("  %s: N=%d a=%g b=%g c=%g  rel-L2 %.4f (ms=off %.4f)" % ((s,) + ms + (errs[k], base[s])))
 
 
 def cmd_table(a):
@@ -124,6 +134,8 @@ def main():
     t.add_argument("--spp", type=int, default=256)
     f = sub.add_parser("fit")
     f.add_argument("--method", default="raymarch")
+    f.add_argument("--scenes", help="comma list instead of the fit scenes (e.g. to see the model's ceiling)")
+    f.add_argument("--grid", help='values per parameter replacing the default grid, e.g. "N=2,3 b=0.1,0.2"')
     tb = sub.add_parser("table")
     tb.add_argument("--ms", required=True, help='"N a b c"')
     tb.add_argument("--methods", default="raymarch,afm")

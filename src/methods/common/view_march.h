@@ -71,8 +71,8 @@ void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, con
                      "ms=octaves: octave i has phase eccentricity c^i g"},
 #define LU_VIEW_MARCH_MS_N 3
 #define LU_VIEW_MARCH_MS_A 0.5
-#define LU_VIEW_MARCH_MS_B 0.5
-#define LU_VIEW_MARCH_MS_C 0.5
+#define LU_VIEW_MARCH_MS_B 0.2
+#define LU_VIEW_MARCH_MS_C 0.25
 
 /* The octave record of the values at params[first ..] (LU_VIEW_MARCH_MS_PARAMS):
  * one octave (single scattering) when ms = off. */
