@@ -9,8 +9,8 @@
 
 Every comparison is `lucent compare IMAGE TRUTH --block 8`: 8x8 block averages,
 which remove most of the truth's Monte Carlo noise (see the doc for its size).
-Environment: LUCENT (default build/lucent), TRUTHS (default truths/ under the
-repository; a folder of SCENE.exr), OUT (renders, default a temporary folder).
+Environment: LUCENT (default build/lucent), TRUTHS (a folder of SCENE.exr;
+default build/ms_truths), OUT (renders, default a temporary folder).
 """
 import argparse
 import itertools
@@ -22,7 +22,7 @@ import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LUCENT = os.environ.get("LUCENT", os.path.join(ROOT, "build", "lucent"))
-TRUTHS = os.environ.get("TRUTHS", os.path.join(ROOT, "truths"))
+TRUTHS = os.environ.get("TRUTHS", os.path.join(ROOT, "build", "ms_truths"))
 FIT_SCENES = ["smoke_box", "dusty_room", "spot_shaft"]
 REPORT_SCENES = ["demo", "bunny_fog", "cube_torus", "layered_cube", "homogeneous_sphere"]
 GRID = {
