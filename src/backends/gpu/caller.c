@@ -83,17 +83,17 @@ static const struct {
 } k_formats[3] = {{GL_RGBA32F, "rgba32f"}, {GL_RGBA16F, "rgba16f"}, {GL_RGBA8, "rgba8"}};
 
 static lu_result texture_format(unsigned texture, int width, int height, int *index, lu_error *err) {
+    /* An error the caller's own calls left pending is not this call's. */
+    while (glGetError() != GL_NO_ERROR) {
+    }
     if (!texture || !glIsTexture(texture))
         return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: %u is not a texture of the current OpenGL context", texture);
-    GLint target = 0, w = 0, h = 0, format = 0;
-    glGetTextureParameteriv(texture, GL_TEXTURE_TARGET, &target);
+    GLint w = 0, h = 0, format = 0;
     glGetTextureLevelParameteriv(texture, 0, GL_TEXTURE_WIDTH, &w);
     glGetTextureLevelParameteriv(texture, 0, GL_TEXTURE_HEIGHT, &h);
     glGetTextureLevelParameteriv(texture, 0, GL_TEXTURE_INTERNAL_FORMAT, &format);
     lu_result r = lu_gpu_check_gl("texture query", err);
     if (r != LU_OK) return r;
-    if (target != GL_TEXTURE_2D)
-        return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: texture %u is not a GL_TEXTURE_2D", texture);
     if (w != width || h != height)
         return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: texture %u is %dx%d but the frame is %dx%d", texture, (int)w,
                        (int)h, width, height);
