@@ -135,7 +135,7 @@ lu_result lu_bench_plot(const char *path, const lu_plot_point *pts, int n, const
         char yl[160];
         snprintf(yl, sizeof yl, "rel-L2 against the truth (%s)", truth);
         gp_quoted(fs, yl);
-        fprintf(fs, " noenhanced\nset offsets graph 0.05, graph 0.35, graph 0.15, graph 0.15\n"
+        fprintf(fs, " noenhanced\nset offsets graph 0.05, graph 0.25, graph 0.3, graph 0.15\n"
                     "set multiplot layout %d,1\n",
                 npanels);
         for (int pi = 0; pi < npanels; pi++) {
@@ -161,7 +161,7 @@ lu_result lu_bench_plot(const char *path, const lu_plot_point *pts, int n, const
                     fprintf(fs, ", \\\n     ");
                 }
             gp_quoted(fs, data);
-            fprintf(fs, " index %d using 1:2:3 with labels offset char 0.9,0.5 left font ',8' noenhanced notitle\n", pi);
+            fprintf(fs, " index %d using 1:2:3 with labels rotate by 25 offset char 0.8,0.6 left font ',8' noenhanced notitle\n", pi);
         }
         fprintf(fs, "unset multiplot\nset output\n");
     }

@@ -269,8 +269,12 @@ static lu_result render_add(const lu_scene *scene, const lu_kvlist *base, int se
     return r;
 }
 
-/* Seeds of half h (0 or 1), pass i: disjoint for the two halves and all passes. */
-static int seed_of(int base, int i, int h) { return (int)(((long long)base + 2LL * i + h) % 2147483647LL); }
+/* Seeds of half h (0 or 1), pass i: disjoint for the two halves and all
+ * passes, and away from the seed itself, so that a pathtrace row at the same
+ * settings is judged by samples it does not share with the truth. */
+static int seed_of(int base, int i, int h) {
+    return (int)(((long long)base + (1LL << 30) + 2LL * i + h) % 2147483647LL);
+}
 
 static lu_result render_truth(const lu_scene *scene, const lu_kvlist *settings, int spp0, int base_seed,
                               int block_wanted, int max_spp, lu_image *out, lu_truth_info *info, lu_error *err) {

@@ -1,10 +1,11 @@
 /* lucent bench SCENE.json... --methods a,b — per-frame time after warm-up,
  * prepare time, peak memory, and error against the reference of the same
  * scene, all measured in one run (docs/architecture.md §8); parameter sweeps,
- * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c).
- * Over 800 lines: one command whose motions, sweeps, truths and rows share
- * the row table and its three output formats (in a job, rows are gathered
- * through cli/mpi.c). */
+ * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c);
+ * the pathtrace truth and its cache are cli/bench_truth.c, the plot
+ * cli/bench_plot.c. Over 800 lines: one command whose motions, sweeps,
+ * truths and rows share the row table and its output formats (in a job,
+ * rows are gathered through cli/mpi.c). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -585,13 +586,13 @@ static void json_string(FILE *f, const char *s) {
 }
 
 static bool write_json(const char *path, const row *rows, int n, double gsps, double gsps_end, int ys_threads,
-                       const char *scene0, const char *sfx, lu_error *err) {
+                       const char *scene0, const char *truth, const char *sfx, lu_error *err) {
     lu_atomic_file af;
     if (lu_atomic_open(&af, path, err) != LU_OK) return false;
     FILE *f = af.fp;
     fprintf(f, "{\"scene\": ");
     json_string(f, scene0);
-    fprintf(f, ", \"truth\": \"%s\"", *sfx ? sfx + 4 : "reference");
+    fprintf(f, ", \"truth\": \"%s\"", truth);
     fprintf(f, ", \"width\": %d, \"height\": %d, \"threads\": %d, \"yardstick_gsps\": %.4f, \"yardstick_gsps_end\": %.4f, "
                "\"yardstick_threads\": %d, \"load_avg\": %.2f, \"rows\": [\n",
             n ? rows[0].width : 0, n ? rows[0].height : 0, lu_thread_count(), gsps, gsps_end, ys_threads,
@@ -1086,8 +1087,18 @@ static lu_result plot_rows(const bench_opts *o, const row *rows, int n, double g
         p->panel = panels[i];
         p->method = r->method;
         p->gpu = r->backend == LU_BACKEND_GPU;
-        snprintf(p->label, sizeof p->label, "%s%s%s%s", r->method, p->gpu ? "/gpu" : "", r->params[0] ? " " : "",
-                 r->params);
+        /* "afm steps=32 jitter=1": the sweep values without their method's name */
+        size_t used = (size_t)snprintf(p->label, sizeof p->label, "%s%s", r->method, p->gpu ? "/gpu" : "");
+        size_t mlen = strlen(r->method);
+        for (const char *q = r->params; *q && used + 2 < sizeof p->label;) {
+            const char *sp = strchr(q, ' ');
+            size_t len = sp ? (size_t)(sp - q) : strlen(q);
+            if (len > mlen && strncmp(q, r->method, mlen) == 0 && q[mlen] == '.') q += mlen + 1, len -= mlen + 1;
+            used += (size_t)snprintf(p->label + used, sizeof p->label - used, " %.*s", (int)len, q);
+            if (used >= sizeof p->label) break;
+            q += len;
+            while (*q == ' ') q++;
+        }
         p->ms = r->median_ms;
         p->rel_l2 = r->has_err ? r->err.rel_l2 : -1.0;
     }
@@ -1180,7 +1191,8 @@ int lu_cmd_bench(int argc, char **argv) {
         const char *sfx = o.truth_pathtrace ? "_vs_pathtrace" : "";
         print_table(stdout, rows, nrows, o.truth_pathtrace ? "_pt" : "");
         if (o.csv && !write_csv(o.csv, rows, nrows, sfx, &err)) rc = lu_cli_error("bench", &err);
-        if (o.json && !write_json(o.json, rows, nrows, gsps, gsps_end, ys_threads, o.scenes[0], sfx, &err))
+        if (o.json && !write_json(o.json, rows, nrows, gsps, gsps_end, ys_threads, o.scenes[0],
+                                  o.ref_path ? "file" : o.truth_pathtrace ? "pathtrace" : "reference", sfx, &err))
             rc = lu_cli_error("bench", &err);
         if (rc == LU_EXIT_OK && o.plot && plot_rows(&o, rows, nrows, gsps, &err) != LU_OK) rc = lu_cli_error("bench", &err);
     }

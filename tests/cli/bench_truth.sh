@@ -122,4 +122,19 @@ noise=$(sed 's/.*(\([0-9.]*\)%)/\1/' <<<"$t1")
 r1=$(rel "$tmp/g.csv" reference)
 awk -v r="$r1" -v n="$noise" 'BEGIN { exit !(r <= 3 * n / 100) }' ||
   fail "single-scattering truth: reference at rel_l2 $r1, truth noise $noise%"
-echo "ok (single-scattering truth: reference at $r1, noise $noise%)"
+# 7. The noise estimate ||A - B|| / (2 ||M||) is the truth's distance from a
+# far less noisy one: a 64-spp truth against a 4096-spp one is
+# sqrt(n64^2 + n4096^2) apart (their noises add; the 4096 one shares the
+# first 64 samples, which makes it a little less). A factor sqrt(2) or 2
+# in the rule would put the ratio outside [0.8, 1.25].
+noise_at() { sed -n 's/.*pathtrace truth, \([0-9]*\) spp: noise \([0-9.]*\)% per pixel.*/\1 \2/p' "$1" | tail -1; }
+for m in 64 4096; do
+  "$lucent" "${b[@]:0:${#b[@]}-1}" "$m" --save-images "$tmp/n$m" >/dev/null 2>"$tmp/n$m.log" || fail "truth at $m spp"
+done
+read -r s64 n64 <<<"$(noise_at "$tmp/n64.log")"
+read -r s4k n4k <<<"$(noise_at "$tmp/n4096.log")"
+[[ $s64 == 64 && -n $n4k ]] || fail "noise lines: $(cat "$tmp/n64.log" "$tmp/n4096.log")"
+d=$("$lucent" compare "$tmp/n64/truth.exr" "$tmp/n4096/truth.exr" | awk '/^rel_l2/ { print $2 }')
+awk -v d="$d" -v a="$n64" -v b="$n4k" 'BEGIN { e = sqrt(a * a + b * b) / 100; exit !(d >= 0.8 * e && d <= 1.25 * e) }' ||
+  fail "64-spp truth is $d from the $s4k-spp one; the noise estimates say $n64% and $n4k%"
+echo "ok (noise: 64 spp $n64%, measured $d; single-scattering truth: reference at $r1, noise $noise%)"
