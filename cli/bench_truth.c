@@ -15,7 +15,7 @@
 
 /* Bumped whenever what a cached truth means changes without a lucent
  * version change (the rule, the file layout). */
-#define TRUTH_FORMAT 1
+#define TRUTH_FORMAT 2
 
 /* ---- the key ------------------------------------------------------------- */
 
@@ -279,11 +279,12 @@ static int seed_of(int base, int i, int h) {
 static lu_result render_truth(const lu_scene *scene, const lu_kvlist *settings, int spp0, int base_seed,
                               int block_wanted, int max_spp, lu_image *out, lu_truth_info *info, lu_error *err) {
     const int w = scene->camera.width, h = scene->camera.height;
-    const bool can_block = w >= LU_TRUTH_BLOCK && h >= LU_TRUTH_BLOCK;
+    /* A noise estimate from a few blocks is itself too noisy to trust. */
+    const bool can_block = (w / LU_TRUTH_BLOCK) * (h / LU_TRUTH_BLOCK) >= LU_TRUTH_MIN_BLOCKS;
     if (block_wanted == LU_TRUTH_BLOCK && !can_block) block_wanted = 1;
     lu_image a = {0}, b = {0};
     int half = 0;   /* samples per pixel in each of a and b */
-    double ms = 0.0, n_pix = 0.0, n_blk = INFINITY;
+    double ms = 0.0, n_pix = INFINITY, n_blk = INFINITY;
     lu_result r = LU_OK;
     int block = 0;
     for (int pass = 0; r == LU_OK && !block; pass++) {
@@ -292,18 +293,23 @@ static lu_result render_truth(const lu_scene *scene, const lu_kvlist *settings, 
         if (r == LU_OK) r = render_add(scene, settings, seed_of(base_seed, pass, 1), add, &b, half, &ms, err);
         if (r != LU_OK) break;
         half += add;
+        /* A target counts as met when this pass's estimate meets it and the
+         * previous one, halved in variance, did too: one estimate can dip
+         * far below the noise where rare bright paths dominate it. */
+        const double prev_ok = LU_TRUTH_NOISE_TARGET * sqrt(2.0);
+        bool pix_prev = n_pix <= prev_ok, blk_prev = n_blk <= prev_ok;
         n_pix = mean_noise(&a, &b);
         if (can_block) r = block_noise(&a, &b, &n_blk, err);
         if (r != LU_OK) break;
+        bool pix_ok = pix_prev && n_pix <= LU_TRUTH_NOISE_TARGET, blk_ok = blk_prev && n_blk <= LU_TRUTH_NOISE_TARGET;
         int total = 2 * half;
         /* what per-pixel would take: noise falls as 1 / sqrt(spp) */
         double need = (double)total * (n_pix / LU_TRUTH_NOISE_TARGET) * (n_pix / LU_TRUTH_NOISE_TARGET);
         fprintf(stderr, "lucent bench: pathtrace truth, %d spp: noise %.2f%% per pixel%s", total, 100.0 * n_pix,
                 can_block ? "" : "\n");
         if (can_block) fprintf(stderr, ", %.2f%% in %dx%d blocks\n", 100.0 * n_blk, LU_TRUTH_BLOCK, LU_TRUTH_BLOCK);
-        if (block_wanted != LU_TRUTH_BLOCK && n_pix <= LU_TRUTH_NOISE_TARGET) block = 1;
-        else if (block_wanted != 1 && can_block && n_blk <= LU_TRUTH_NOISE_TARGET &&
-                 (block_wanted == LU_TRUTH_BLOCK || need > max_spp))
+        if (block_wanted != LU_TRUTH_BLOCK && pix_ok) block = 1;
+        else if (block_wanted != 1 && can_block && blk_ok && (block_wanted == LU_TRUTH_BLOCK || need > max_spp))
             block = LU_TRUTH_BLOCK;
         else if (2 * total > max_spp) {
             block = block_wanted ? block_wanted : can_block ? LU_TRUTH_BLOCK : 1;

@@ -9,6 +9,7 @@
 /* The noise rule of the pathtrace truth (docs/bench.md "The pathtrace truth"). */
 #define LU_TRUTH_NOISE_TARGET 0.02   /* rel-L2 of the truth's own noise */
 #define LU_TRUTH_BLOCK 8             /* side of the block averages when per-pixel would cost too much */
+#define LU_TRUTH_MIN_BLOCKS 64       /* fewer blocks than this: per pixel only */
 #define LU_TRUTH_MAX_SPP_DEFAULT 4096 /* both seeds together */
 
 typedef struct lu_truth_info {
@@ -22,7 +23,8 @@ typedef struct lu_truth_info {
 
 /* The pathtrace truth of the scene in its current state. Renders two
  * estimates with disjoint seeds, doubling both until the noise of their mean,
- * ||A - B|| / (2 ||(A + B) / 2||), is at most LU_TRUTH_NOISE_TARGET per pixel;
+ * ||A - B|| / (2 ||(A + B) / 2||), is at most LU_TRUTH_NOISE_TARGET per pixel
+ * (and was at most sqrt(2) times that one pass before);
  * where that would take more than max_spp it settles for the same noise in
  * LU_TRUTH_BLOCK-sized block averages, and at max_spp it stops with a warning.
  * block_wanted: 0 the rule above, 1 or LU_TRUTH_BLOCK that comparison only
