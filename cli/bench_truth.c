@@ -313,10 +313,10 @@ static lu_result render_truth(const lu_scene *scene, const lu_kvlist *settings, 
             block = LU_TRUTH_BLOCK;
         else if (2 * total > max_spp) {
             block = block_wanted ? block_wanted : can_block ? LU_TRUTH_BLOCK : 1;
-            fprintf(stderr, "lucent bench: warning: the pathtrace truth stops at %d spp (--truth-max-spp) with "
-                            "noise %.2f%% %s, above the %.0f%% target\n",
-                    total, 100.0 * (block == 1 ? n_pix : n_blk), block == 1 ? "per pixel" : "in blocks",
-                    100.0 * LU_TRUTH_NOISE_TARGET);
+            fprintf(stderr, "lucent bench: warning: the pathtrace truth stops at %d spp (--truth-max-spp) before "
+                            "meeting the %.0f%% target: noise %.2f%% %s\n",
+                    total, 100.0 * LU_TRUTH_NOISE_TARGET, 100.0 * (block == 1 ? n_pix : n_blk),
+                    block == 1 ? "per pixel" : "in blocks");
         }
     }
     if (r == LU_OK) {

@@ -1073,7 +1073,8 @@ static lu_result plot_rows(const bench_opts *o, const row *rows, int n, double g
     int np = 0;
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
-        snprintf(panels[i], sizeof panels[i], "%s, %s, %dx%d", r->scene, k_motion_names[r->motion], r->width, r->height);
+        snprintf(panels[i], sizeof panels[i], "%s, %s, %dx%d, truth %s", r->scene, k_motion_names[r->motion], r->width,
+                 r->height, r->truth);
         bool new_panel = i == 0 || strcmp(panels[i], panels[i - 1]) != 0;
         if (new_panel && o->truth_pathtrace && r->ref_ms > 0.0) {
             lu_plot_point *p = &pts[np++];
@@ -1105,8 +1106,7 @@ static lu_result plot_rows(const bench_opts *o, const row *rows, int n, double g
     char note[200], truth[64];
     if (gsps > 0.0) snprintf(note, sizeof note, "%d threads, yardstick %.4f G samples/s", lu_thread_count(), gsps);
     else snprintf(note, sizeof note, "%d threads, no yardstick", lu_thread_count());
-    snprintf(truth, sizeof truth, "%s", o->ref_path ? "the --reference image" : o->truth_pathtrace
-                                            ? (rows[0].truth[0] ? rows[0].truth : "pathtrace") : "reference");
+    snprintf(truth, sizeof truth, "%s", o->ref_path ? "the --reference image" : o->truth_pathtrace ? "pathtrace" : "reference");
     lu_result res = lu_bench_plot(o->plot, pts, np, truth, note, err);
     if (res == LU_OK) fprintf(stderr, "lucent bench: plot written to %s\n", o->plot);
     free(pts);
