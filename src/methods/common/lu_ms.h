@@ -39,24 +39,31 @@ LU_FN lu_k_ms lu_k_ms_make(int octaves, float a, float b, float c) {
     return ms;
 }
 
-/* T^e per channel for T in [0, 1], e > 0; one pow for grey T. */
-LU_FN vec3 lu_k_ms_pow(vec3 T, float e) {
-    float x = lu_pow(lu_max(T.x, 0.0f), e);
-    if (T.y == T.x && T.z == T.x) return lu_v3s(x);
-    return lu_v3(x, lu_pow(lu_max(T.y, 0.0f), e), lu_pow(lu_max(T.z, 0.0f), e));
-}
+/* log T for T in [0, 1]; T = 0 gives a value whose product with any
+ * a^i >= 1e-30 (a >= 0.01, N <= 16) still makes exp underflow to 0 (GLSL's
+ * log(0) is undefined). */
+LU_FN float lu_k_ms_log(float T) { return T > 0.0f ? lu_log(T) : -3.0e38f; }
 
 /* The octaves above the first: sum_{i=1}^{N-1} b^i p(cos_t, c^i g) T^(a^i),
  * what multiplies sigma_s E (E without the transmittance T to the light)
- * on top of single scattering. Zero for N <= 1. */
+ * on top of single scattering. Zero for N <= 1. T^(a^i) = exp(a^i log T):
+ * one log per channel (one for grey T) and one exp per octave, cheaper than
+ * a pow per octave; an isotropic phase is not evaluated per octave. */
 LU_FN vec3 lu_k_ms_extra(lu_k_ms ms, float cos_t, float g, vec3 T) {
     vec3 s = lu_v3s(0.0f);
+    if (ms.octaves <= 1) return s;
+    bool grey = T.y == T.x && T.z == T.x;
+    float lx = lu_k_ms_log(T.x);
+    float ly = grey ? lx : lu_k_ms_log(T.y), lz = grey ? lx : lu_k_ms_log(T.z);
     float ai = 1.0f, bi = 1.0f, ci = 1.0f;
     for (int i = 1; i < ms.octaves; i++) {
         ai *= ms.a;
         bi *= ms.b;
         ci *= ms.c;
-        s = lu_v3_madd(s, lu_k_ms_pow(T, ai), bi * lu_k_phase_hg(cos_t, ci * g));
+        float w = bi * (g == 0.0f ? LU_K_INV_4PI : lu_k_phase_hg(cos_t, ci * g));
+        float tx = lu_exp(ai * lx);
+        vec3 Ti = grey ? lu_v3s(tx) : lu_v3(tx, lu_exp(ai * ly), lu_exp(ai * lz));
+        s = lu_v3_madd(s, Ti, w);
     }
     return s;
 }
