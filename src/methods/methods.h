@@ -28,6 +28,7 @@ extern const lu_method lu_method_gradient;
 extern const lu_method lu_method_rbf;
 extern const lu_method lu_method_pervoxel;
 extern const lu_method lu_method_ddod;
+extern const lu_method lu_method_froxel;
 
 /* Offset for secondary rays leaving a surface: a fixed fraction of the
  * scene's size, so it neither self-intersects nor skips thin features at any
