@@ -1,16 +1,18 @@
 /* lucent bench SCENE.json... --methods a,b — per-frame time after warm-up,
  * prepare time, peak memory, and error against the reference of the same
  * scene, all measured in one run (docs/architecture.md §8); parameter sweeps,
- * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c).
- * Over 800 lines: one command whose motions, sweeps, truths and rows share
- * the row table and its three output formats (in a job, rows are gathered
- * through cli/mpi.c). */
+ * scripted motions (docs/bench.md) and the yardstick unit (cli/yardstick.c);
+ * the pathtrace truth and its cache are cli/bench_truth.c, the plot
+ * cli/bench_plot.c. Over 800 lines: one command whose motions, sweeps,
+ * truths and rows share the row table and its output formats (in a job,
+ * rows are gathered through cli/mpi.c). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
+#include "bench_truth.h"
 #include "cli.h"
 #include "mpi_job.h"
 
@@ -41,8 +43,14 @@ static void usage(void) {
            "                      in a scene whose media follow time (sequences, an animated\n"
            "                      plume) the scene's time advances one frame (1/fps) instead.\n"
            "                      Warm-up frames render step 0; one renderer renders them all\n"
+           "  --truth KIND        reference (default): single scattering, exact; pathtrace: every\n"
+           "                      order of scattering, rendered with two seeds, doubling the samples\n"
+           "                      until the noise of their mean is <= 2%% rel-L2 per pixel, or in 8x8\n"
+           "                      block averages where per-pixel would take more than --truth-max-spp\n"
+           "                      (the table's truth column says which); cached in the cache folder\n"
+           "  --truth-max-spp N   most samples per pixel of the pathtrace truth (default %d)\n"
            "  --reference FILE    use this image as the truth instead of rendering it (one scene,\n"
-           "                      still only)\n"
+           "                      still only); overrides --truth\n"
            "  --no-truth          render no truth: timings only, the error columns stay empty\n"
            "  --time T            put each scene at time T seconds first (media that follow time)\n"
            "  --stability         with a motion: render the truth at every timed state and\n"
@@ -58,6 +66,8 @@ static void usage(void) {
            "                      the scene, motion and sweep index in the name when there are several)\n"
            "  --csv FILE          also write the table as CSV\n"
            "  --json FILE         also write the table as JSON\n"
+           "  --plot FILE.png     draw rel-L2 against frame time (log-log, one point per row, one\n"
+           "                      panel per scene and motion) with gnuplot\n"
            "\n"
            "Timings are wall-clock (monotonic) medians; compare methods as ratios within one\n"
            "run. The truth is the reference method at its settings on the CPU, rendered for the\n"
@@ -68,7 +78,8 @@ static void usage(void) {
            "\n"
            "Under mpirun or srun (a build with MPI) the ranks take whole scenes from a\n"
            "work queue (all of a scene's rows on one rank, spp_eq by that rank's own\n"
-           "yardstick) and rank 0 prints and writes the merged table (docs/distributed.md).\n");
+           "yardstick) and rank 0 prints and writes the merged table (docs/distributed.md).\n",
+           LU_TRUTH_MAX_SPP_DEFAULT);
 }
 
 /* ---- motions ------------------------------------------------------------- */
@@ -373,6 +384,9 @@ typedef struct row {
     double update_ms;       /* median time of the scene change before each timed frame (not in frame_ms) */
     double flicker;         /* --stability: mean |frame k - frame k-1| over the truth's; < 0: not measured */
     double gsps;            /* the yardstick spp_equiv used: in a job, its rank's */
+    char truth[48];         /* what rel_l2 is measured against: "reference", "pathtrace(1.6%)", "file" */
+    double truth_noise;     /* the first state's pathtrace truth: its noise and spp (0: another truth) */
+    int truth_spp;
     /* A row travels to rank 0 as bytes (cli/mpi.c); these name what its
      * pointers point to, to point them again there. */
     int scene_index, seq;
@@ -487,33 +501,60 @@ static lu_result render_truth(motion_state *ms, int k, const lu_kvlist *settings
     return r != LU_OK ? r : r2;
 }
 
+/* a against the truth t, per pixel (block 1) or as block x block averages. */
+static lu_result compare_truth(const lu_image *a, const lu_image *t, int block, lu_metrics *m, lu_error *err) {
+    if (block <= 1) return lu_image_compare(a, t, m, err);
+    lu_image ba = {0}, bt = {0};
+    lu_result r = lu_image_block_average(a, block, &ba, err);
+    if (r == LU_OK) r = lu_image_block_average(t, block, &bt, err);
+    if (r == LU_OK) r = lu_image_compare(&ba, &bt, m, err);
+    lu_image_destroy(&ba);
+    lu_image_destroy(&bt);
+    return r;
+}
+
 static double psnr_out(double p) { return isinf(p) ? 999.0 : p; }
 
-static void print_table(FILE *f, const row *rows, int n) {
-    fprintf(f, "%-12s %-4s %12s %12s %10s %10s %10s %9s %-7s %12s %10s  %s\n", "method", "dev", "prepare_ms",
-            "frame_ms", "x_vs_ref", "peak_MB", "rel_l2", "psnr_dB", "motion", "rel_l2_first", "spp_eq", "scene params");
+/* Column names say which truth the errors are measured against: the plain
+ * names are those against reference (or the --reference image), sfx
+ * "_vs_pathtrace" (the text table: "_pt") marks the multiple-scattering truth. */
+static void colname(char *out, size_t n, const char *base, const char *sfx) { snprintf(out, n, "%s%s", base, sfx); }
+
+static void print_table(FILE *f, const row *rows, int n, const char *sfx) {
+    char x[64], rl[64], ps[64], rf[64];
+    colname(x, sizeof x, *sfx ? "x_vs" : "x_vs_ref", sfx);
+    colname(rl, sizeof rl, "rel_l2", sfx);
+    colname(ps, sizeof ps, "psnr_dB", sfx);
+    colname(rf, sizeof rf, "rel_l2_first", sfx);
+    int wx = *sfx ? (int)strlen(x) : 10, wr = *sfx ? (int)strlen(rl) : 10, wp = *sfx ? (int)strlen(ps) : 9,
+        wf = *sfx ? (int)strlen(rf) : 12;
+    fprintf(f, "%-12s %-4s %12s %12s %*s %10s %*s %*s %-7s %*s %10s %-20s %s\n", "method", "dev", "prepare_ms",
+            "frame_ms", wx, x, "peak_MB", wr, rl, wp, ps, "motion", wf, rf, "spp_eq", "truth", "scene params");
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
-        fprintf(f, "%-12s %-4s %12.2f %12.2f %10.2f %10.1f ", r->method, lu_backend_name(r->backend), r->prepare_ms,
-                r->median_ms, r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb);
-        if (r->has_err) fprintf(f, "%10.5f %9.2f ", r->err.rel_l2, psnr_out(r->err.psnr));
-        else fprintf(f, "%10s %9s ", "-", "-");
+        fprintf(f, "%-12s %-4s %12.2f %12.2f %*.2f %10.1f ", r->method, lu_backend_name(r->backend), r->prepare_ms,
+                r->median_ms, wx, r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb);
+        if (r->has_err) fprintf(f, "%*.5f %*.2f ", wr, r->err.rel_l2, wp, psnr_out(r->err.psnr));
+        else fprintf(f, "%*s %*s ", wr, "-", wp, "-");
         fprintf(f, "%-7s ", k_motion_names[r->motion]);
-        if (r->has_err) fprintf(f, "%12.5f ", r->rel_l2_first);
-        else fprintf(f, "%12s ", "-");
-        fprintf(f, "%10.1f  %s%s%s", r->spp_equiv, r->scene, r->params[0] ? " " : "", r->params);
+        if (r->has_err) fprintf(f, "%*.5f ", wf, r->rel_l2_first);
+        else fprintf(f, "%*s ", wf, "-");
+        fprintf(f, "%10.1f %-20s %s%s%s", r->spp_equiv, r->truth[0] ? r->truth : "-", r->scene, r->params[0] ? " " : "",
+                r->params);
         if (r->flicker >= 0.0) fprintf(f, "  flicker %.3f", r->flicker);
         fputc('\n', f);
     }
 }
 
-static bool write_csv(const char *path, const row *rows, int n, lu_error *err) {
+static bool write_csv(const char *path, const row *rows, int n, const char *sfx, lu_error *err) {
     lu_atomic_file af;
     if (lu_atomic_open(&af, path, err) != LU_OK) return false;
     FILE *f = af.fp;
-    fprintf(f, "scene,method,backend,prepare_ms,frame_ms_median,frame_ms_min,frame_ms_max,frames,speedup_vs_reference,"
-               "peak_mb,rel_l2,rel_l1,rmse,psnr,motion,params,rel_l2_first,rel_l2_last,rel_l2_last_vs_first,spp_equiv,"
-               "yardstick_gsps,load_avg,width,height,threads,flicker,update_ms\n");
+    const char *t = *sfx ? sfx : "_vs_reference";
+    fprintf(f, "scene,method,backend,prepare_ms,frame_ms_median,frame_ms_min,frame_ms_max,frames,speedup%s,"
+               "peak_mb,rel_l2%s,rel_l1%s,rmse%s,psnr%s,motion,params,rel_l2_first%s,rel_l2_last%s,rel_l2_last_vs_first,"
+               "spp_equiv,yardstick_gsps,load_avg,width,height,threads,flicker,update_ms,truth\n",
+            t, sfx, sfx, sfx, sfx, sfx, sfx);
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
         fprintf(f, "%s,%s,%s,%.3f,%.3f,%.3f,%.3f,%d,%.4f,%.1f,", r->scene, r->method, lu_backend_name(r->backend),
@@ -529,7 +570,7 @@ static bool write_csv(const char *path, const row *rows, int n, lu_error *err) {
         fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d,", r->last_vs_first, r->spp_equiv, r->gsps, r->load_avg, r->width,
                 r->height, lu_thread_count());
         if (r->flicker >= 0.0) fprintf(f, "%.6g", r->flicker);
-        fprintf(f, ",%.3f\n", r->update_ms);
+        fprintf(f, ",%.3f,%s\n", r->update_ms, r->truth);
     }
     return lu_atomic_commit(&af, err) == LU_OK;
 }
@@ -545,12 +586,13 @@ static void json_string(FILE *f, const char *s) {
 }
 
 static bool write_json(const char *path, const row *rows, int n, double gsps, double gsps_end, int ys_threads,
-                       const char *scene0, lu_error *err) {
+                       const char *scene0, const char *truth, const char *sfx, lu_error *err) {
     lu_atomic_file af;
     if (lu_atomic_open(&af, path, err) != LU_OK) return false;
     FILE *f = af.fp;
     fprintf(f, "{\"scene\": ");
     json_string(f, scene0);
+    fprintf(f, ", \"truth\": \"%s\"", truth);
     fprintf(f, ", \"width\": %d, \"height\": %d, \"threads\": %d, \"yardstick_gsps\": %.4f, \"yardstick_gsps_end\": %.4f, "
                "\"yardstick_threads\": %d, \"load_avg\": %.2f, \"rows\": [\n",
             n ? rows[0].width : 0, n ? rows[0].height : 0, lu_thread_count(), gsps, gsps_end, ys_threads,
@@ -564,13 +606,18 @@ static bool write_json(const char *path, const row *rows, int n, double gsps, do
                 "\"params\": ",
                 r->width, r->height, r->method, lu_backend_name(r->backend), k_motion_names[r->motion]);
         json_string(f, r->params);
+        fprintf(f, ", \"truth\": ");
+        json_string(f, r->truth);
         fprintf(f,
-                ", \"prepare_ms\": %.3f, \"frame_ms\": %.3f, \"frames\": %d, \"speedup_vs_reference\": %.4f, "
+                ", \"prepare_ms\": %.3f, \"frame_ms\": %.3f, \"frames\": %d, \"speedup%s\": %.4f, "
                 "\"peak_mb\": %.1f",
-                r->prepare_ms, r->median_ms, r->frames, r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb);
+                r->prepare_ms, r->median_ms, r->frames, *sfx ? sfx : "_vs_reference",
+                r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb);
         if (r->has_err)
-            fprintf(f, ", \"rel_l2\": %.6g, \"rel_l1\": %.6g, \"psnr\": %.4f, \"rel_l2_first\": %.6g, \"rel_l2_last\": %.6g",
-                    r->err.rel_l2, r->err.rel_l1, psnr_out(r->err.psnr), r->rel_l2_first, r->rel_l2_last);
+            fprintf(f, ", \"rel_l2%s\": %.6g, \"rel_l1%s\": %.6g, \"psnr%s\": %.4f, \"rel_l2_first%s\": %.6g, "
+                       "\"rel_l2_last%s\": %.6g",
+                    sfx, r->err.rel_l2, sfx, r->err.rel_l1, sfx, psnr_out(r->err.psnr), sfx, r->rel_l2_first, sfx,
+                    r->rel_l2_last);
         if (r->flicker >= 0.0) fprintf(f, ", \"flicker\": %.6g", r->flicker);
         fprintf(f, ", \"update_ms\": %.3f", r->update_ms);
         fprintf(f, ", \"rel_l2_last_vs_first\": %.6g, \"spp_equiv\": %.2f, \"yardstick_gsps\": %.4f, \"load_avg\": %.2f}%s\n",
@@ -612,7 +659,9 @@ struct bench_opts {
     lu_kvlist settings;
     sweep sweeps[MAX_SWEEPS];
     int nsweeps;
-    const char *csv, *json, *ref_path, *img_dir;
+    const char *csv, *json, *ref_path, *img_dir, *plot;
+    bool truth_pathtrace;      /* --truth pathtrace (without --reference) */
+    int truth_max_spp;
     bool no_truth, no_yardstick, stability, time_given;
     double time;
     unsigned tracking;         /* bit 0: rows with change tracking, bit 1: rows without */
@@ -672,6 +721,17 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
             motion_given = true;
         } else if (strcmp(a, "--reference") == 0 && has_next) {
             o->ref_path = argv[++i];
+        } else if (strcmp(a, "--truth") == 0 && has_next) {
+            const char *v = argv[++i];
+            if (strcmp(v, "pathtrace") == 0) o->truth_pathtrace = true;
+            else if (strcmp(v, "reference") == 0) o->truth_pathtrace = false;
+            else rc = lu_cli_usage("bench", "--truth \"%s\": expected reference or pathtrace", v);
+        } else if (strcmp(a, "--truth-max-spp") == 0 && has_next) {
+            o->truth_max_spp = (int)strtol(argv[++i], &end, 10);
+            if (*end || o->truth_max_spp < 2 || o->truth_max_spp > (1 << 20))
+                rc = lu_cli_usage("bench", "--truth-max-spp takes 2..1048576");
+        } else if (strcmp(a, "--plot") == 0 && has_next) {
+            o->plot = argv[++i];
         } else if (strcmp(a, "--no-truth") == 0) {
             o->no_truth = true;
         } else if (strcmp(a, "--time") == 0 && has_next) {
@@ -741,6 +801,14 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
     rows *= (long)o->nscenes * o->nbackends * nmot;
     if (rows > MAX_ROWS) return lu_cli_usage("bench", "%ld rows requested; at most %d", rows, MAX_ROWS);
     if (o->ref_path && o->no_truth) return lu_cli_usage("bench", "--reference and --no-truth exclude each other");
+    if (o->truth_pathtrace && o->no_truth) return lu_cli_usage("bench", "--truth and --no-truth exclude each other");
+    /* --reference overrides --truth: the image is the truth. */
+    if (o->ref_path) o->truth_pathtrace = false;
+    if (o->truth_pathtrace && o->stability)
+        return lu_cli_usage("bench", "--stability: the pathtrace truth's own noise would count as change; use "
+                                     "--truth reference");
+    if (o->plot && o->no_truth) return lu_cli_usage("bench", "--plot draws errors: not with --no-truth");
+    if (o->plot && !lu_path_has_suffix(o->plot, ".png")) return lu_cli_usage("bench", "--plot %s: expected a .png name", o->plot);
     if (o->stability && (o->no_truth || o->ref_path))
         return lu_cli_usage("bench", "--stability measures against the truth: not with --no-truth or --reference");
     if (o->stability && nmot == o->motions[MOTION_STILL])
@@ -758,6 +826,21 @@ static int parse_args(int argc, char **argv, bench_opts *o, char *methods_buf, s
     }
     if (lu_settings_validate(&o->settings, &err) != LU_OK) return lu_cli_error("bench", &err);
     return LU_EXIT_OK;
+}
+
+/* The pathtrace truth at step k (cli/bench_truth.c). The state's words
+ * enter the cache key; the media's values in that state enter it there.
+ * Leaves the scene at step 0. */
+static lu_result pathtrace_truth(const bench_opts *o, motion_state *ms, const char *path, int k, int block,
+                                 lu_image *img, lu_truth_info *ti, lu_error *err) {
+    lu_result r = motion_set(ms, k, err);
+    char state[96];
+    snprintf(state, sizeof state, "%s %d time %.17g", k_motion_names[ms->kind], k, ms->scene->time);
+    if (r == LU_OK)
+        r = lu_bench_pathtrace_truth(ms->scene, path, &o->settings, state, block,
+                                     o->truth_max_spp ? o->truth_max_spp : LU_TRUTH_MAX_SPP_DEFAULT, img, ti, err);
+    lu_result r2 = motion_set(ms, 0, err);
+    return r != LU_OK ? r : r2;
 }
 
 /* One scene: every motion, method, backend and sweep combination. Appends
@@ -785,12 +868,26 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
         lu_image truth_first = {0}, truth_last = {0};
         double truth_first_ms = 0.0, truth_last_ms = 0.0;
         int first_step = mo == MOTION_STILL ? 0 : 1, last_step = mo == MOTION_STILL ? 0 : frames;
+        lu_truth_info ti_first = {0}, ti_last = {0};
+        char truth_label[48] = "";
+        int block = 1;      /* the truth is compared in block x block averages */
         if (res == LU_OK && o->ref_path) {
+            snprintf(truth_label, sizeof truth_label, "file");
             res = lu_image_load(o->ref_path, &truth_first, err);
             if (res == LU_OK && (truth_first.width != scene->camera.width || truth_first.height != scene->camera.height))
                 res = lu_fail(err, LU_ERR_INVALID_ARG, "%s is %dx%d but the scene renders %dx%d", o->ref_path,
                               truth_first.width, truth_first.height, scene->camera.width, scene->camera.height);
+        } else if (res == LU_OK && o->truth_pathtrace) {
+            fprintf(stderr, "lucent bench: %s: the pathtrace truth, %s ...\n", path, k_motion_names[mo]);
+            res = pathtrace_truth(o, &ms, path, first_step, 0, &truth_first, &ti_first, err);
+            truth_first_ms = ti_first.ms;
+            block = ti_first.block;
+            /* the last state is judged in the first one's comparison */
+            if (res == LU_OK && last_step != first_step)
+                res = pathtrace_truth(o, &ms, path, last_step, block, &truth_last, &ti_last, err);
+            snprintf(truth_label, sizeof truth_label, "%s", last_step != first_step ? ti_last.label : ti_first.label);
         } else if (res == LU_OK && !o->no_truth) {
+            snprintf(truth_label, sizeof truth_label, "reference");
             fprintf(stderr, "lucent bench: %s: rendering the reference (the truth), %s ...\n", path,
                     k_motion_names[mo]);
             res = render_truth(&ms, first_step, &o->settings, &truth_first, &truth_first_ms, err);
@@ -811,7 +908,7 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
             if (res == LU_OK) truth_step_diff += mean_abs_diff(&truth_last, &prev);
             lu_image_destroy(&prev);
             lu_image_destroy(&cur);
-        } else if (res == LU_OK && last_step != first_step && !o->no_truth) {
+        } else if (res == LU_OK && last_step != first_step && !o->no_truth && !o->truth_pathtrace) {
             res = render_truth(&ms, last_step, &o->settings, &truth_last, &truth_last_ms, err);
         }
         const lu_image *tlast = last_step != first_step ? &truth_last : &truth_first;
@@ -857,6 +954,9 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     r->height = scene->camera.height;
                     r->motion = mo;
                     r->ref_ms = truth_first_ms;
+                    snprintf(r->truth, sizeof r->truth, "%s", truth_label);
+                    r->truth_noise = ti_first.noise;
+                    r->truth_spp = ti_first.spp;
                     lu_kvlist settings;
                     res = combo_settings(&o->settings, o->sweeps, o->nsweeps, m->name, c, &settings, r->params,
                                          sizeof r->params, err);
@@ -865,8 +965,8 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                         snprintf(r->params + n, sizeof r->params - n, "%stracking=off", n ? " " : "");
                     }
                     lu_image first = {0}, last = {0};
-                    bool reuse = is_ref && o->backends[b] == LU_BACKEND_CPU && !o->ref_path && !o->no_truth && !r->params[0] &&
-                                 !truth_row_used;
+                    bool reuse = is_ref && o->backends[b] == LU_BACKEND_CPU && !o->ref_path && !o->no_truth &&
+                                 !o->truth_pathtrace && !r->params[0] && !truth_row_used;
                     if (res == LU_OK && reuse) {
                         /* The truth of the first state is this row's one frame. */
                         truth_row_used = true;
@@ -891,8 +991,8 @@ static lu_result bench_scene(const bench_opts *o, const char *path, lu_scene *sc
                     const lu_image *tl = r->frames == frames ? tlast : &truth_first;
                     lu_metrics mf, ml, d;
                     if (res == LU_OK && !o->no_truth) {
-                        res = lu_image_compare(&first, &truth_first, &mf, err);
-                        if (res == LU_OK) res = lu_image_compare(&last, tl, &ml, err);
+                        res = compare_truth(&first, &truth_first, block, &mf, err);
+                        if (res == LU_OK) res = compare_truth(&last, tl, block, &ml, err);
                         if (res == LU_OK) {
                             r->err = ml;
                             r->has_err = true;
@@ -959,6 +1059,61 @@ static lu_result gather_rows(const bench_opts *o, row **rows, int *nrows, lu_err
     return LU_OK;
 }
 
+/* The error-time plot of the rows (cli/bench_plot.c): one panel per scene
+ * and motion, and with the pathtrace truth its own point at its render time
+ * and estimated noise when it was rendered in this run. */
+static lu_result plot_rows(const bench_opts *o, const row *rows, int n, double gsps, lu_error *err) {
+    lu_plot_point *pts = calloc((size_t)2 * n + 1, sizeof *pts);
+    char (*panels)[320] = calloc((size_t)n + 1, sizeof *panels);
+    if (!pts || !panels) {
+        free(pts);
+        free(panels);
+        return lu_fail(err, LU_ERR_NOMEM, "out of memory");
+    }
+    int np = 0;
+    for (int i = 0; i < n; i++) {
+        const row *r = &rows[i];
+        snprintf(panels[i], sizeof panels[i], "%s, %s, %dx%d, truth %s", r->scene, k_motion_names[r->motion], r->width,
+                 r->height, r->truth);
+        bool new_panel = i == 0 || strcmp(panels[i], panels[i - 1]) != 0;
+        if (new_panel && o->truth_pathtrace && r->ref_ms > 0.0) {
+            lu_plot_point *p = &pts[np++];
+            p->panel = panels[i];
+            p->method = "truth";
+            snprintf(p->label, sizeof p->label, "pathtrace truth, %d spp (noise est.)", r->truth_spp);
+            p->ms = r->ref_ms;
+            p->rel_l2 = r->truth_noise;
+        }
+        lu_plot_point *p = &pts[np++];
+        p->panel = panels[i];
+        p->method = r->method;
+        p->gpu = r->backend == LU_BACKEND_GPU;
+        /* "afm steps=32 jitter=1": the sweep values without their method's name */
+        size_t used = (size_t)snprintf(p->label, sizeof p->label, "%s%s", r->method, p->gpu ? "/gpu" : "");
+        size_t mlen = strlen(r->method);
+        for (const char *q = r->params; *q && used + 2 < sizeof p->label;) {
+            const char *sp = strchr(q, ' ');
+            size_t len = sp ? (size_t)(sp - q) : strlen(q);
+            if (len > mlen && strncmp(q, r->method, mlen) == 0 && q[mlen] == '.') q += mlen + 1, len -= mlen + 1;
+            used += (size_t)snprintf(p->label + used, sizeof p->label - used, " %.*s", (int)len, q);
+            if (used >= sizeof p->label) break;
+            q += len;
+            while (*q == ' ') q++;
+        }
+        p->ms = r->median_ms;
+        p->rel_l2 = r->has_err ? r->err.rel_l2 : -1.0;
+    }
+    char note[200], truth[64];
+    if (gsps > 0.0) snprintf(note, sizeof note, "%d threads, yardstick %.4f G samples/s", lu_thread_count(), gsps);
+    else snprintf(note, sizeof note, "%d threads, no yardstick", lu_thread_count());
+    snprintf(truth, sizeof truth, "%s", o->ref_path ? "the --reference image" : o->truth_pathtrace ? "pathtrace" : "reference");
+    lu_result res = lu_bench_plot(o->plot, pts, np, truth, note, err);
+    if (res == LU_OK) fprintf(stderr, "lucent bench: plot written to %s\n", o->plot);
+    free(pts);
+    free(panels);
+    return res;
+}
+
 int lu_cmd_bench(int argc, char **argv) {
     bench_opts o;
     memset(&o, 0, sizeof o);
@@ -981,6 +1136,10 @@ int lu_cmd_bench(int argc, char **argv) {
     bool writer = lu_mpi_rank() == 0;
     if (rc == LU_EXIT_OK && o.csv && writer) rc = lu_cli_check_output("bench", o.csv);
     if (rc == LU_EXIT_OK && o.json && writer) rc = lu_cli_check_output("bench", o.json);
+    if (rc == LU_EXIT_OK && o.plot && writer) rc = lu_cli_check_output("bench", o.plot);
+    if (rc == LU_EXIT_OK && o.plot && writer && !lu_bench_have_gnuplot())
+        rc = lu_cli_error("bench", &(lu_error){LU_ERR_UNSUPPORTED, "--plot needs gnuplot, which is not on PATH "
+                                                                   "(scripts/setup.sh installs gnuplot-nox)"});
     if (rc == LU_EXIT_OK && o.img_dir) {
         char probe[1100];
         snprintf(probe, sizeof probe, "%s/truth.exr", o.img_dir);
@@ -1029,10 +1188,13 @@ int lu_cmd_bench(int argc, char **argv) {
         printf("yardstick %.4f G samples/s (%.4f at the end, %d threads); load average %.2f at the start, "
                "%.2f %.2f %.2f at the end\n",
                gsps, gsps_end, ys_threads, load0, l[0], l[1], l[2]);
-        print_table(stdout, rows, nrows);
-        if (o.csv && !write_csv(o.csv, rows, nrows, &err)) rc = lu_cli_error("bench", &err);
-        if (o.json && !write_json(o.json, rows, nrows, gsps, gsps_end, ys_threads, o.scenes[0], &err))
+        const char *sfx = o.truth_pathtrace ? "_vs_pathtrace" : "";
+        print_table(stdout, rows, nrows, o.truth_pathtrace ? "_pt" : "");
+        if (o.csv && !write_csv(o.csv, rows, nrows, sfx, &err)) rc = lu_cli_error("bench", &err);
+        if (o.json && !write_json(o.json, rows, nrows, gsps, gsps_end, ys_threads, o.scenes[0],
+                                  o.ref_path ? "file" : o.truth_pathtrace ? "pathtrace" : "reference", sfx, &err))
             rc = lu_cli_error("bench", &err);
+        if (rc == LU_EXIT_OK && o.plot && plot_rows(&o, rows, nrows, gsps, &err) != LU_OK) rc = lu_cli_error("bench", &err);
     }
     free(rows);
     for (int i = 0; i < o.nsweeps; i++) free(o.sweeps[i].text);

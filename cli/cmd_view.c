@@ -17,11 +17,15 @@
  * interaction and records every frame (ms, scale, rel-L2 of the frames that
  * show the final view against a fresh renderer's full image of it).
  *
- * The image is rendered by the method (CPU or its GPU path on its own
- * headless EGL context), tone mapped exactly as `lucent render -o x.png`
+ * A CPU method's image is tone mapped exactly as `lucent render -o x.png`
  * does (sRGB curve after 2^exposure), overlaid, and drawn with glDrawPixels
- * into the window's own context; the screenshot is read back from the
- * window (glReadPixels), so it shows what the window showed.
+ * into the window's own context. A GPU method works in the window's context
+ * itself (lu_renderer_desc.gl_caller_context) and renders into a texture
+ * there (lu_renderer_render_texture), which a fragment shader tone maps the
+ * same way: its frames never pass through CPU memory, except to measure
+ * them (the live error, --stats); --readback sends them through the CPU as
+ * before. The screenshot is read back from the window (glReadPixels), so
+ * it shows what the window showed.
  * Over 800 lines: one interactive loop and the state it drives (the budget,
  * refinement, the overlay, the live error, scripts, --stats, time). */
 #include <math.h>
@@ -55,6 +59,8 @@ static void usage(void) {
            "  --size WxH          image and window size (default: the scene camera's)\n"
            "  --exposure E        scale by 2^E before the sRGB curve (default 0)\n"
            "  --no-overlay        start with the overlay hidden\n"
+           "  --readback          GPU methods render in their own context and their frames go through\n"
+           "                      CPU memory to the window (default: into a texture of the window's)\n"
            "  --compare           render the reference first (as key C does)\n"
            "  --screenshot FILE   render --frames frames, save the window's last frame (PNG), exit\n"
            "                      (with --script: after the settle)\n"
@@ -201,6 +207,15 @@ typedef struct viewer {
     double time0;              /* the start time, for Home */
     double play_clock;         /* glfwGetTime() of the last advance while playing */
     double ref_time;           /* the time the reference was rendered at */
+    /* GPU methods in the window's own context (gl_caller_context) */
+    GLFWwindow *win;
+    bool direct;               /* GPU frames go into `tex`, never through CPU memory (no --readback) */
+    bool in_texture;           /* the last frame is in tex, not (only) in img */
+    bool measure;              /* frames are also read back into img: the live error or --stats need them */
+    GLuint tex, prog, vao;     /* the frame (RGBA32F, render size), the tone-mapping program */
+    int tex_w, tex_h;
+    uint8_t *ovl;              /* direct: the overlay box, RGBA, top row first */
+    int ovl_w, ovl_h;
     /* --stats */
     stats_row *rows;
     int row_count, row_cap;
@@ -312,6 +327,8 @@ static lu_result kv_copy(lu_kvlist *dst, const lu_kvlist *src, lu_error *err) {
 }
 
 static void destroy_renderers(viewer *v) {
+    /* a renderer in the window's context frees its objects there */
+    if (v->win) glfwMakeContextCurrent(v->win);
     for (int q = 0; q < 2; q++) {
         if (v->rq[q] == v->r) v->r = NULL;
         lu_renderer_destroy(v->rq[q]);
@@ -319,6 +336,111 @@ static void destroy_renderers(viewer *v) {
     }
     lu_renderer_destroy(v->r);
     v->r = NULL;
+}
+
+/* The direct path's frame: the renderer writes v->tex (made at the render
+ * size) in the window's context; read back into v->img only to measure it. */
+static bool frame_to_texture(viewer *v, const lu_scene *at, lu_error *err) {
+    int w = at->camera.width, h = at->camera.height;
+    if (!v->tex || v->tex_w != w || v->tex_h != h) {
+        if (v->tex) glDeleteTextures(1, &v->tex);
+        glCreateTextures(GL_TEXTURE_2D, 1, &v->tex);
+        glTextureStorage2D(v->tex, 1, GL_RGBA32F, w, h);
+        glTextureParameteri(v->tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTextureParameteri(v->tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTextureParameteri(v->tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        glTextureParameteri(v->tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        v->tex_w = w;
+        v->tex_h = h;
+    }
+    if (lu_renderer_render_texture(v->r, at, v->tex, err) != LU_OK) return false;
+    if (!v->measure) return true;
+    size_t n = (size_t)w * h * 4;
+    float *px = malloc(n * sizeof *px);
+    if (!px) {
+        lu_fail(err, LU_ERR_NOMEM, "view: out of memory reading the frame back");
+        return false;
+    }
+    glGetTextureImage(v->tex, 0, GL_RGBA, GL_FLOAT, (GLsizei)(n * sizeof *px), px);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++)
+            for (int c = 0; c < 3; c++)
+                v->img.rgb[((size_t)y * w + x) * 3 + c] = px[((size_t)(h - 1 - y) * w + x) * 4 + c];
+    free(px);
+    return true;
+}
+
+/* Draws v->tex over the image's area of the window (top left, as
+ * glDrawPixels places the CPU path's image), bilinear when the render is
+ * smaller, through lu_srgb_encode's curve after the exposure gain. */
+static const char k_display_vs[] =
+    "#version 450\n"
+    "out vec2 uv;\n"
+    "void main() {\n"
+    "    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));\n"
+    "    uv = p;\n"
+    "    gl_Position = vec4(2.0 * p - 1.0, 0.0, 1.0);\n"
+    "}\n";
+static const char k_display_fs[] =
+    "#version 450\n"
+    "in vec2 uv;\n"
+    "out vec4 color;\n"
+    "layout(binding = 0) uniform sampler2D frame;\n"
+    "uniform float gain;\n"
+    "float srgb(float x) {\n"
+    "    if (!(x > 0.0)) return 0.0;\n"
+    "    if (x <= 0.0031308) return 12.92 * x;\n"
+    "    return 1.055 * pow(x, 1.0 / 2.4) - 0.055;\n"
+    "}\n"
+    "void main() {\n"
+    "    vec3 c = texture(frame, uv).rgb * gain;\n"
+    "    color = vec4(srgb(c.r), srgb(c.g), srgb(c.b), 1.0);\n"
+    "}\n";
+
+static GLuint compile_stage(GLenum kind, const char *src, char *log, size_t log_size) {
+    GLuint sh = glCreateShader(kind);
+    glShaderSource(sh, 1, &src, NULL);
+    glCompileShader(sh);
+    GLint ok = 0;
+    glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        glGetShaderInfoLog(sh, (GLsizei)log_size, NULL, log);
+        glDeleteShader(sh);
+        return 0;
+    }
+    return sh;
+}
+
+/* The window's display program, or false (and the reason) where its
+ * context cannot run it: GPU frames then take the --readback path. */
+static bool display_init(viewer *v, char *why, size_t why_size) {
+    if (epoxy_gl_version() < 45) {
+        snprintf(why, why_size, "the window's OpenGL is %d.%d, not 4.5", epoxy_gl_version() / 10,
+                 epoxy_gl_version() % 10);
+        return false;
+    }
+    GLuint vs = compile_stage(GL_VERTEX_SHADER, k_display_vs, why, why_size);
+    GLuint fs = vs ? compile_stage(GL_FRAGMENT_SHADER, k_display_fs, why, why_size) : 0;
+    if (!vs || !fs) {
+        glDeleteShader(vs);
+        return false;
+    }
+    v->prog = glCreateProgram();
+    glAttachShader(v->prog, vs);
+    glAttachShader(v->prog, fs);
+    glLinkProgram(v->prog);
+    glDeleteShader(vs);
+    glDeleteShader(fs);
+    GLint ok = 0;
+    glGetProgramiv(v->prog, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        glGetProgramInfoLog(v->prog, (GLsizei)why_size, NULL, why);
+        glDeleteProgram(v->prog);
+        v->prog = 0;
+        return false;
+    }
+    glGenVertexArrays(1, &v->vao);
+    return true;
 }
 
 /* (Re)creates the renderer when needed and renders one frame (one more pass
@@ -360,14 +482,21 @@ static bool render_frame(viewer *v) {
         if (v->need_create) destroy_renderers(v);   /* v->r is one of them: no dangling pointer if the create fails */
         v->need_create = false;
         int q = v->quality;
-        if (!v->rq[q] && lu_renderer_create(m->name, &at, q == Q_MOVING ? &v->moving_settings : &v->settings,
-                                            backend_for(v), &v->rq[q], &err) != LU_OK)
-            goto fail;
+        lu_renderer_desc d = {.method = m->name, .backend = backend_for(v),
+                              .settings = q == Q_MOVING ? &v->moving_settings : &v->settings,
+                              .gl_caller_context = v->direct};
+        glfwMakeContextCurrent(v->win);
+        if (!v->rq[q] && lu_renderer_make(&d, &at, &v->rq[q], &err) != LU_OK) goto fail;
         v->r = v->rq[q];
     }
     v->need_create = false;
     v->prepare_ms = lu_cli_stats(v->r).prepare_ms;
-    if (lu_renderer_render(v->r, &at, &v->img, &err) != LU_OK) goto fail;
+    v->in_texture = v->direct && !prog && lu_cli_stats(v->r).backend == LU_BACKEND_GPU;
+    if (v->in_texture) {
+        if (!frame_to_texture(v, &at, &err)) goto fail;
+    } else if (lu_renderer_render(v->r, &at, &v->img, &err) != LU_OK) {
+        goto fail;
+    }
     v->last_ms = lu_cli_stats(v->r).frame_ms + (prog ? v->prepare_ms : 0.0);
     size_t n = (size_t)v->img.width * v->img.height * 3;
     if (prog) {
@@ -519,8 +648,10 @@ static void update_error(viewer *v) {
 /* Tone maps the shown image, then draws the overlay. */
 static void compose(viewer *v) {
     int w = v->width, h = v->height;
-    tone_job job = {v, exp2f(v->exposure)};
-    lu_parallel_for(h, 16, tone_rows, &job, NULL);
+    if (!v->in_texture) {
+        tone_job job = {v, exp2f(v->exposure)};
+        lu_parallel_for(h, 16, tone_rows, &job, NULL);
+    }
     if (!v->overlay) return;
     int scale;
     char lines[6][160];
@@ -559,11 +690,40 @@ static void compose(viewer *v) {
     scale = 2 * bw + 12 <= w ? 2 : 1;
     bw *= scale;
     int lh = (LU_FONT_H + 3) * scale;
-    lu_font_backdrop(v->rgb, w, h, 0, 0, bw + 6 * scale, nl * lh + 4 * scale);
+    int box_w = bw + 6 * scale, box_h = nl * lh + 4 * scale;
     static const uint8_t white[3] = {235, 235, 235}, amber[3] = {255, 190, 60}, red[3] = {255, 90, 80};
+    if (!v->in_texture) {
+        lu_font_backdrop(v->rgb, w, h, 0, 0, box_w, box_h);
+        for (int i = 0; i < nl; i++)
+            lu_font_draw(v->rgb, w, h, 3 * scale, 3 * scale + i * lh, lines[i], scale,
+                         i == 0 ? amber : (i == 4 && v->status[0]) ? red : white);
+        return;
+    }
+    /* The direct path's overlay: the text on its own, blended over the
+     * drawn frame (alpha 3/4 on the box is lu_font_backdrop's quarter). */
+    box_w = box_w < w ? box_w : w;
+    box_h = box_h < h ? box_h : h;
+    uint8_t *text = calloc((size_t)box_w * box_h, 3);
+    uint8_t *ovl = realloc(v->ovl, (size_t)box_w * box_h * 4);
+    if (!text || !ovl) {
+        free(text);
+        v->ovl = ovl;
+        v->ovl_w = v->ovl_h = 0;
+        return;
+    }
     for (int i = 0; i < nl; i++)
-        lu_font_draw(v->rgb, w, h, 3 * scale, 3 * scale + i * lh, lines[i], scale,
+        lu_font_draw(text, box_w, box_h, 3 * scale, 3 * scale + i * lh, lines[i], scale,
                      i == 0 ? amber : (i == 4 && v->status[0]) ? red : white);
+    for (size_t i = 0; i < (size_t)box_w * box_h; i++) {
+        const uint8_t *t = text + 3 * i;
+        bool ink = t[0] | t[1] | t[2];
+        ovl[4 * i] = t[0], ovl[4 * i + 1] = t[1], ovl[4 * i + 2] = t[2];
+        ovl[4 * i + 3] = ink ? 255 : 191;
+    }
+    free(text);
+    v->ovl = ovl;
+    v->ovl_w = box_w;
+    v->ovl_h = box_h;
 }
 
 static void draw(GLFWwindow *win, viewer *v) {
@@ -576,7 +736,26 @@ static void draw(GLFWwindow *win, viewer *v) {
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
     glPixelZoom(1.0f, -1.0f);
     glWindowPos2i(0, fh);
-    glDrawPixels(v->width, v->height, GL_RGB, GL_UNSIGNED_BYTE, v->rgb);
+    if (!v->in_texture) {
+        glDrawPixels(v->width, v->height, GL_RGB, GL_UNSIGNED_BYTE, v->rgb);
+        glPixelZoom(1.0f, 1.0f);
+        return;
+    }
+    glViewport(0, fh - v->height, v->width, v->height);
+    glUseProgram(v->prog);
+    glUniform1f(glGetUniformLocation(v->prog, "gain"), exp2f(v->exposure));
+    glBindTextureUnit(0, v->tex);
+    glBindVertexArray(v->vao);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glBindVertexArray(0);
+    glUseProgram(0);
+    glViewport(0, 0, fw, fh);
+    if (v->overlay && v->ovl_w > 0) {
+        glEnable(GL_BLEND);
+        glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+        glDrawPixels(v->ovl_w, v->ovl_h, GL_RGBA, GL_UNSIGNED_BYTE, v->ovl);
+        glDisable(GL_BLEND);
+    }
     glPixelZoom(1.0f, 1.0f);
 }
 
@@ -924,7 +1103,7 @@ int lu_cmd_view(int argc, char **argv) {
     bool time_given = false;
     double start_time = 0.0;
     int width = 0, height = 0, frames = -1, rc = LU_EXIT_OK;
-    bool compare = false, moving_defaults = true;
+    bool compare = false, moving_defaults = true, readback = false;
     lu_kvlist moving_extra = {0};
     lu_view_script script = LU_VIEW_SCRIPT_NONE;
     static viewer v;
@@ -963,6 +1142,8 @@ int lu_cmd_view(int argc, char **argv) {
                 rc = lu_cli_usage("view", "--budget takes milliseconds in (0, 60000] (\"%s\")", argv[i]);
         } else if (strcmp(a, "--compare") == 0) {
             compare = true;
+        } else if (strcmp(a, "--readback") == 0) {
+            readback = true;
         } else if (strcmp(a, "--no-overlay") == 0) {
             v.overlay = false;
         } else if (strcmp(a, "--screenshot") == 0 && has_next) {
@@ -1092,6 +1273,14 @@ int lu_cmd_view(int argc, char **argv) {
     }
     /* the auto decision and its note, once a window shows that the viewer can run */
     lu_cli_resolve_backend("view", v.want_backend, NULL);
+    v.win = win;
+    glfwMakeContextCurrent(win);
+    if (!readback) {
+        char no_direct[256] = "";
+        v.direct = display_init(&v, no_direct, sizeof no_direct);
+        if (!v.direct && v.want_backend != LU_BACKEND_CPU)
+            fprintf(stderr, "lucent view: note: GPU frames go through CPU memory: %s\n", no_direct);
+    }
     glfwSetKeyCallback(win, on_key);
     glfwSetMouseButtonCallback(win, on_button);
     glfwSetCursorPosCallback(win, on_cursor);
@@ -1166,10 +1355,13 @@ int lu_cmd_view(int argc, char **argv) {
         }
         double render_ms = -1.0;
         if (render_now) {
+            v.measure = stats_path != NULL || v.ref.rgb != NULL;
             if (render_frame(&v)) {
                 render_ms = lu_cli_stats(v.r).frame_ms;
-                upsample(&v);
-                update_error(&v);
+                if (!v.in_texture || v.measure) {
+                    upsample(&v);
+                    update_error(&v);
+                }
                 soak_refused = 0;
             } else if (script == LU_VIEW_SCRIPT_SOAK && ++soak_refused < method_count) {
                 /* a method this scene does not suit: the next one, as Tab would */
@@ -1236,7 +1428,12 @@ int lu_cmd_view(int argc, char **argv) {
     if (rc == LU_EXIT_OK && script) script_summary(&v, script, frames);
     /* the method's contexts go before the window's */
     destroy_renderers(&v);
+    glfwMakeContextCurrent(win);
+    if (v.tex) glDeleteTextures(1, &v.tex);
+    if (v.prog) glDeleteProgram(v.prog);
+    if (v.vao) glDeleteVertexArrays(1, &v.vao);
     glfwDestroyWindow(win);
+    v.win = NULL;
     /* No glfwTerminate: it closes the display and unloads the GL driver, and
      * Mesa 22.3's swrast_dri.so leaks on every unload (LeakSanitizer; the same
      * reason the GPU backend never terminates its EGL displays, context.c).
@@ -1250,6 +1447,7 @@ done:
     free(v.rows);
     free(v.ref_lights);
     free(v.accum);
+    free(v.ovl);
     free(v.rgb);
     free(v.cols);
     free(v.lights0);

@@ -3,7 +3,8 @@
 # out of the default suite, in one script, at most about 30 minutes on a
 # 2-core machine:
 #   1. test_alloc_fail --full: every allocation of one frame of each CPU
-#      method failed in turn;
+#      method failed in turn, then --gpu --full: the same over the GPU
+#      methods' host side (skipped without a GPU context);
 #   2. test_soak --frames 1000 --size 160x90: the library loop, its CSV in
 #      out/soak/library.csv;
 #   3. lucent view --script soak --frames 2000 at 160x90 under Xvfb (orbit,
@@ -22,6 +23,11 @@ mkdir -p "$out"
 export LUCENT_QUIET=1
 echo "soak: 1/3 allocation failure, every allocation of one frame per method"
 "$build/test_alloc_fail" --full
+set +e
+"$build/test_alloc_fail" --gpu --full
+rc=$?
+set -e
+[[ $rc -eq 0 || $rc -eq 77 ]] || exit $rc
 echo "soak: 2/3 library loop, $frames frames per method at 160x90"
 "$build/test_soak" --frames "$frames" --size 160x90 --csv "$out/library.csv"
 echo "soak: 3/3 viewer, $vframes scripted frames at 160x90 under Xvfb"

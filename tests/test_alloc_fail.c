@@ -12,7 +12,9 @@
  *     bit for bit.
  * Without an argument the sweep is sampled (the first allocations, then an
  * even spread); `test_alloc_fail --full` fails every N, as `make soak` runs
- * it. One thread, so the allocation order is the same on every run. */
+ * it. `--gpu` sweeps the GPU methods' host side instead (raymarch and
+ * bssrdf on the GPU; the test test_alloc_fail_gpu). One thread, so the
+ * allocation order is the same on every run. */
 #include "lu_test.h"
 
 #include <time.h>
@@ -26,6 +28,7 @@ static void quiet_log(lu_log_level level, const char *message, void *user) {
 typedef struct job {
     const char *method, *settings;
     lu_scene *scene;
+    lu_backend backend;   /* 0: the CPU */
 } job;
 
 typedef struct outcome {
@@ -58,7 +61,7 @@ static void run(const job *j, long fail_at, outcome *o) {
     snprintf(buf, sizeof buf, "%s", j->settings);
     for (char *tok = strtok(buf, " "); tok && res == LU_OK; tok = strtok(NULL, " "))
         res = lu_kv_parse_assignment(&kv, tok, &err);
-    if (res == LU_OK) res = lu_renderer_create(j->method, s, &kv, LU_BACKEND_CPU, &r, &err);
+    if (res == LU_OK) res = lu_renderer_create(j->method, s, &kv, j->backend ? j->backend : LU_BACKEND_CPU, &r, &err);
     if (res == LU_OK) res = lu_renderer_render(r, s, &first, &err);
     if (res == LU_OK) {
         move_camera(s, 0.1f);
@@ -223,7 +226,15 @@ static lu_scene *load(const char *name, int w, int h) {
 }
 
 int main(int argc, char **argv) {
-    bool full = argc > 1 && strcmp(argv[1], "--full") == 0;
+    bool full = false, gpu = false;
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--full") == 0) full = true;
+        else if (strcmp(argv[i], "--gpu") == 0) gpu = true;
+        else {
+            fprintf(stderr, "usage: test_alloc_fail [--full] [--gpu]\n");
+            return 2;
+        }
+    }
     lu_host host = k_test_alloc_host;
     host.log = quiet_log;
     host.threads = 1;
@@ -233,23 +244,42 @@ int main(int argc, char **argv) {
     lu_scene *demo = load("demo", 24, 18);
     lu_scene *spheres = load("bssrdf_spheres", 24, 16);
     lu_scene *sparse = load("sparse_cloud", 24, 16);
-    const job jobs[] = {
-        {"reference", "", demo},
-        {"raymarch", "", demo},
-        {"raymarch", "", sparse},   /* a NanoVDB tree sampled in place */
-        {"afm", "afm.map_res=32", demo},
-        {"gradient", "", demo},
-        {"pervoxel", "", demo},
-        {"rbf", "", demo},
-        {"ddod", "ddod.res=16 ddod.dirs=16 ddod.samples=500", spheres},
-        {"pathtrace", "pathtrace.spp=1", demo},
-        {"pathtrace", "pathtrace.spp=1", spheres},   /* refracting boundaries: the manifold next-event path */
-        {"bssrdf", "bssrdf.splats=256", spheres},
-    };
     long points = 0;
-    const char *loads[] = {"demo", "bssrdf_spheres", "sparse_cloud", "bunny_marble", "smoke_box"};
-    for (size_t i = 0; i < sizeof loads / sizeof loads[0]; i++) points += sweep_load(loads[i], full);
-    for (size_t i = 0; i < sizeof jobs / sizeof jobs[0]; i++) points += sweep(&jobs[i], full);
+    if (gpu) {
+        /* The GPU methods' host side: context, programs, the shared scene
+         * upload and each driver's buffers, and the CPU products they
+         * upload. The driver's own memory is outside the sweep. */
+        if (!lu_gpu_compiled_in()) TEST_EXIT_SKIPPED("built without the GPU backend");
+        lu_renderer *probe = NULL;
+        lu_result pr = lu_renderer_create("raymarch", demo, NULL, LU_BACKEND_GPU, &probe, &err);
+        lu_renderer_destroy(probe);
+        if (pr == LU_ERR_BACKEND) TEST_EXIT_SKIPPED("no GPU context");
+        demo->camera.width = 12;
+        demo->camera.height = 9;
+        const job gpu_jobs[] = {
+            {"raymarch", "raymarch.steps=32", demo, LU_BACKEND_GPU},
+            {"bssrdf", "bssrdf.splats=64", spheres, LU_BACKEND_GPU},
+            {"ddod", "ddod.res=16 ddod.dirs=16 ddod.samples=500", spheres, LU_BACKEND_GPU},
+        };
+        for (size_t i = 0; i < sizeof gpu_jobs / sizeof gpu_jobs[0]; i++) points += sweep(&gpu_jobs[i], full);
+    } else {
+        const job jobs[] = {
+            {"reference", "", demo, 0},
+            {"raymarch", "", demo, 0},
+            {"raymarch", "", sparse, 0},   /* a NanoVDB tree sampled in place */
+            {"afm", "afm.map_res=32", demo, 0},
+            {"gradient", "", demo, 0},
+            {"pervoxel", "", demo, 0},
+            {"rbf", "", demo, 0},
+            {"ddod", "ddod.res=16 ddod.dirs=16 ddod.samples=500", spheres, 0},
+            {"pathtrace", "pathtrace.spp=1", demo, 0},
+            {"pathtrace", "pathtrace.spp=1", spheres, 0},   /* refracting boundaries: the manifold next-event path */
+            {"bssrdf", "bssrdf.splats=256", spheres, 0},
+        };
+        const char *loads[] = {"demo", "bssrdf_spheres", "sparse_cloud", "bunny_marble", "smoke_box"};
+        for (size_t i = 0; i < sizeof loads / sizeof loads[0]; i++) points += sweep_load(loads[i], full);
+        for (size_t i = 0; i < sizeof jobs / sizeof jobs[0]; i++) points += sweep(&jobs[i], full);
+    }
     CHECK(points > 0);
     lu_scene_destroy(demo);
     lu_scene_destroy(spheres);

@@ -4,9 +4,9 @@
  *
  *   embed SCENE.json OUT.png [METHOD [WxH [method.param=value ...]]]
  *
- * GPU methods render into lucent's own headless context and hand the image
- * back in CPU memory; rendering into the caller's GL texture is not part of
- * the API yet. */
+ * GPU methods render into lucent's own headless context here and hand the
+ * image back in CPU memory; embed_window.c renders into a texture of the
+ * program's own window instead. */
 #include <lucent/lucent.h>
 
 #include <stdio.h>

@@ -138,6 +138,14 @@ typedef struct lu_renderer_desc {
     const lu_kvlist *settings;     /* NULL: none; "method.param" keys (core.h) */
     const char *const *set;        /* NULL, or "method.param=value" texts ending with NULL, after settings */
     lu_progressive progressive;    /* zero: off (lu_renderer_set_progressive) */
+    /* true: a GPU renderer works in the OpenGL (4.5 or later) context that
+     * is current on the calling thread at make, the caller's own (a window's,
+     * an engine's), instead of lucent's headless device context, so that it
+     * can render into the caller's textures (lu_renderer_render_texture).
+     * That context must be current at every later call on the renderer
+     * (else LU_ERR_BACKEND); lucent leaves the program and the buffer,
+     * texture and image bindings it used changed. CPU renderers ignore it. */
+    bool gl_caller_context;
 } lu_renderer_desc;
 
 #define LU_DEFAULT_METHOD "reference"
@@ -165,6 +173,8 @@ typedef struct lu_renderer_stats {
     int products;                  /* cached products; names and rebuild counts: lu_renderer_products */
     double rows_ms;                /* the latest lu_renderer_render_rows: time in its bands of rows;
                                     * render_ms minus this is the frame's global stages */
+    bool texture_direct;           /* the latest lu_renderer_render_texture wrote the texture on the GPU,
+                                    * with no copy through the CPU */
 } lu_renderer_stats;
 
 lu_result lu_renderer_get_stats(const lu_renderer *r, lu_renderer_stats *out, lu_error *err);
@@ -177,6 +187,16 @@ lu_result lu_renderer_create(const char *method, const lu_scene *scene, const lu
                              lu_backend backend, lu_renderer **out, lu_error *err);
 /* Creates `out` at the camera size if it is empty (width 0), else requires that size. */
 lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err);
+/* Renders the frame into `texture`: a GL_TEXTURE_2D of the OpenGL context
+ * current on the calling thread, of the camera's size, with internal format
+ * GL_RGBA32F, GL_RGBA16F or GL_RGBA8. Linear radiance as lu_renderer_render
+ * gives it, alpha 1, rows bottom to top as GL stores them (the image is
+ * upright when texture y points up). A GPU renderer made with
+ * gl_caller_context writes it on the GPU, with no copy through the CPU; a
+ * CPU renderer renders into CPU memory and uploads. A GPU renderer in
+ * lucent's own context fails with LU_ERR_UNSUPPORTED: its objects cannot be
+ * shared with the caller's context. */
+lu_result lu_renderer_render_texture(lu_renderer *r, const lu_scene *scene, unsigned texture, lu_error *err);
 void lu_renderer_destroy(lu_renderer *r);
 
 /* Part of an image, for dividing one frame among processes

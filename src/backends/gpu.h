@@ -143,6 +143,36 @@ void lu_gpu_finish(lu_gpu_context *ctx);
 double lu_gpu_time_begin(lu_gpu_context *ctx);
 double lu_gpu_time_end(lu_gpu_context *ctx, double t0);
 
+/* ---- the caller's own context and textures ---------------------------------
+ * An embedding program (an engine, the viewer's window) may have lucent's GPU
+ * methods work in its own OpenGL 4.5 context, current on its thread, so that
+ * frames land in its textures with no copy through the CPU: lucent's
+ * headless EGL device context cannot share objects with a GLX or window
+ * context. The renderer wrapper does this (lu_renderer_desc.gl_caller_context):
+ *   - lu_gpu_caller_context_create wraps the context current on this thread
+ *     (EGL or GLX; GL 4.5 or later). lucent never makes it current, never
+ *     releases it, and fails a call made while it is not current;
+ *   - lu_gpu_caller_use(ctx) makes every lu_gpu_context_create on this
+ *     thread hand out ctx (another reference) until lu_gpu_caller_use(NULL);
+ *   - lu_gpu_output_target(texture) names the caller's texture the frame
+ *     being rendered on this thread goes to; the methods end their frame
+ *     with lu_gpu_output, which writes it there (or, without a target,
+ *     downloads into CPU memory as before). */
+lu_result lu_gpu_caller_context_create(lu_gpu_context **out, lu_error *err);
+void lu_gpu_caller_use(lu_gpu_context *ctx);
+void lu_gpu_output_target(unsigned texture);
+/* True once lu_gpu_output wrote the current target (cleared by lu_gpu_output_target). */
+bool lu_gpu_output_written(void);
+typedef struct lu_gpu_buffer lu_gpu_buffer;
+/* A frame's image, width*height RGB floats in `rgb` (rows top to bottom):
+ * into the target texture when one is set and rgb's context is the
+ * caller's, else downloaded into `out` (width*height*3 floats). */
+lu_result lu_gpu_output(lu_gpu_buffer *rgb, int width, int height, float *out, lu_error *err);
+/* Uploads width*height RGB floats (rows top to bottom) into `texture` of the
+ * context current on this thread, the caller's, as lu_gpu_output writes it:
+ * for frames rendered in CPU memory. */
+lu_result lu_gpu_texture_put_rgb(unsigned texture, const float *rgb, int width, int height, lu_error *err);
+
 /* ---- programs ------------------------------------------------------------- */
 
 typedef struct lu_gpu_program lu_gpu_program;
@@ -173,8 +203,6 @@ void lu_gpu_uniform_vec4(lu_gpu_program *prog, const char *name, float x, float 
 lu_result lu_gpu_dispatch(lu_gpu_program *prog, unsigned gx, unsigned gy, unsigned gz, lu_error *err);
 
 /* ---- shader storage buffers ------------------------------------------------ */
-
-typedef struct lu_gpu_buffer lu_gpu_buffer;
 
 /* bytes > 0; data may be NULL (the buffer is then zero-filled). */
 lu_result lu_gpu_buffer_create(lu_gpu_context *ctx, size_t bytes, const void *data, lu_gpu_buffer **out,

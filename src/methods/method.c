@@ -165,10 +165,14 @@ lu_result lu_method_resolve_params(const lu_method *m, const lu_kvlist *settings
 /* Runs the method's prepare into r->state and times it (state NULL on failure). */
 /* GPU renderers share one device, used by one thread at a time (backends/gpu.h). */
 static void gpu_enter(const lu_renderer *r) {
-    if (r->backend == LU_BACKEND_GPU) lu_gpu_serial_enter();
+    if (r->backend != LU_BACKEND_GPU) return;
+    lu_gpu_serial_enter();
+    lu_gpu_caller_use(r->caller);
 }
 static void gpu_leave(const lu_renderer *r) {
-    if (r->backend == LU_BACKEND_GPU) lu_gpu_serial_leave();
+    if (r->backend != LU_BACKEND_GPU) return;
+    lu_gpu_caller_use(NULL);
+    lu_gpu_serial_leave();
 }
 
 static lu_result prepare_state(lu_renderer *r, const lu_scene *scene, lu_error *err) {
@@ -241,6 +245,8 @@ lu_result lu_renderer_make(const lu_renderer_desc *desc, const lu_scene *scene, 
     rd->stats.backend = d.backend;
     r = lu_method_resolve_params(m, &merged, rd->params, err);
     lu_kv_free(&merged);
+    if (r == LU_OK && d.gl_caller_context && d.backend == LU_BACKEND_GPU)
+        r = lu_gpu_caller_context_create(&rd->caller, err);
     if (r == LU_OK) r = lu_frame_stage_create(&rd->stage, err);
     gpu_enter(rd);
     if (r == LU_OK) r = prepare_state(rd, scene, err);
@@ -250,6 +256,7 @@ lu_result lu_renderer_make(const lu_renderer_desc *desc, const lu_scene *scene, 
     gpu_leave(rd);
     if (r != LU_OK) {
         lu_frame_stage_destroy(rd->stage);
+        lu_gpu_context_destroy(rd->caller);
         lu_free(rd);
         /* AUTO promised a working renderer, not a GPU: a device that cannot
          * be made (or was lost while preparing) leaves the CPU. */
@@ -286,6 +293,30 @@ lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *ou
     gpu_enter(r);
     lu_result e = render_frame(r, scene, NULL, out, err);
     gpu_leave(r);
+    return e;
+}
+
+lu_result lu_renderer_render_texture(lu_renderer *r, const lu_scene *scene, unsigned texture, lu_error *err) {
+    if (r->backend == LU_BACKEND_GPU && !r->caller)
+        return lu_fail(err, LU_ERR_UNSUPPORTED,
+                       "%s: this GPU renderer works in lucent's own context, whose textures the caller's context "
+                       "cannot use; make it with gl_caller_context to render into a texture",
+                       r->method->name);
+    lu_image *img = &r->texture_image;
+    if (img->width != scene->camera.width || img->height != scene->camera.height) {
+        lu_image_destroy(img);
+        memset(img, 0, sizeof *img);
+    }
+    gpu_enter(r);
+    lu_gpu_output_target(texture);
+    lu_result e = render_frame(r, scene, NULL, img, err);
+    bool written = lu_gpu_output_written();
+    r->stats.texture_direct = e == LU_OK && written;
+    lu_gpu_output_target(0);
+    gpu_leave(r);
+    /* A method whose frame ends on the CPU (every CPU renderer) uploads it. */
+    if (e == LU_OK && !written)
+        e = lu_gpu_texture_put_rgb(texture, img->rgb, img->width, img->height, err);
     return e;
 }
 
@@ -386,6 +417,8 @@ void lu_renderer_destroy(lu_renderer *r) {
     r->method->destroy(r->state);
     gpu_leave(r);
     lu_frame_stage_destroy(r->stage);
+    lu_gpu_context_destroy(r->caller);
+    lu_image_destroy(&r->texture_image);
     lu_free(r);
 }
 

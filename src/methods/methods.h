@@ -17,6 +17,8 @@ struct lu_renderer {
     struct lu_frame_stage *stage;   /* what the previous frame rendered */
     int frames;                     /* frames rendered since create or the last failed frame */
     lu_renderer_stats stats;
+    struct lu_gpu_context *caller;  /* gl_caller_context: the caller's context the GPU work runs in */
+    lu_image texture_image;         /* lu_renderer_render_texture's CPU frame, kept between frames */
 };
 
 extern const lu_method lu_method_reference;

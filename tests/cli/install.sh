@@ -2,7 +2,8 @@
 # The installed package: `cmake --install` into a fresh prefix, then
 # examples/embed (a project outside lucent's) built twice against it, with
 # find_package(lucent) and with pkg-config, and run. Each build must render
-# the bundled demo scene exactly as `lucent render` does (rel-L2 0). A shared
+# the bundled demo scene exactly as `lucent render` does (rel-L2 0); with
+# GLFW, embed_window renders into its own window's texture under Xvfb. A shared
 # liblucent, when the build made one, must export lu_ names only.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
@@ -47,6 +48,24 @@ if cmake -S "$src/examples/embed" -B "$tmp/cm" -DCMAKE_PREFIX_PATH="$tmp/prefix"
   fi
 else
   tail -20 "$tmp/cm.log"; echo "FAIL: examples/embed does not build with find_package(lucent)"; fail=1
+fi
+
+# embed_window: the GPU methods in the program's own window context, frames
+# into its texture; the texture read back equals lucent render on the GPU.
+if [[ -x "$tmp/cm/embed_window" ]] && command -v xvfb-run >/dev/null &&
+   "$lucent" render "$src/scenes/smoke_glow.json" --method raymarch --backend gpu --size 40x30 \
+     -o "$tmp/gpu.pfm" 2>/dev/null; then
+  if xvfb-run -a -s "-screen 0 320x240x24" "$tmp/cm/embed_window" "$src/scenes/smoke_glow.json" "$tmp/win.pfm" \
+       raymarch 40x30 3 >"$tmp/win.log" 2>&1; then
+    grep -q "texture_direct" "$tmp/win.log" || { cat "$tmp/win.log"; echo "FAIL: embed_window: not direct"; fail=1; }
+    "$lucent" compare "$tmp/win.pfm" "$tmp/gpu.pfm" --max-rel-l2 0 >/dev/null ||
+      { echo "FAIL: embed_window's texture differs from lucent render --backend gpu"; fail=1; }
+    echo "embed_window: $(head -1 "$tmp/win.log")"
+  else
+    cat "$tmp/win.log"; echo "FAIL: embed_window failed"; fail=1
+  fi
+else
+  echo "embed_window: skipped (not built without GLFW, or no xvfb-run or GPU context)"
 fi
 
 # pkg-config (static linking needs --static; a shared liblucent needs nothing more)

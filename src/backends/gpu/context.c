@@ -128,7 +128,7 @@ static void copy_gl_string(GLenum name, char *out, size_t out_size) {
     snprintf(out, out_size, "%s", s ? s : "");
 }
 
-static void query_limits(lu_gpu_info *info) {
+void lu_gpu_query_info(lu_gpu_info *info) {
     copy_gl_string(GL_VENDOR, info->vendor, sizeof info->vendor);
     copy_gl_string(GL_RENDERER, info->renderer, sizeof info->renderer);
     copy_gl_string(GL_VERSION, info->version, sizeof info->version);
@@ -368,6 +368,16 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     *out = NULL;
     if (pref != LU_GPU_AUTO && pref != LU_GPU_HARDWARE && pref != LU_GPU_SOFTWARE)
         return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: unknown device preference %d", (int)pref);
+    lu_gpu_context *caller = lu_gpu_caller_in_use();
+    if (caller) {
+        /* A renderer that works in the caller's context: every GPU object it
+         * makes lives there (lu_gpu_caller_use). */
+        pthread_mutex_lock(&g_devices_mu);
+        caller->refs++;
+        pthread_mutex_unlock(&g_devices_mu);
+        *out = caller;
+        return LU_OK;
+    }
     lu_result r = env_preference(&pref, err);
     if (r != LU_OK) return r;
     pthread_mutex_lock(&g_devices_mu);
@@ -419,7 +429,7 @@ static lu_result context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
             snprintf(info->egl_path, sizeof info->egl_path, "%s",
                      cands->c[i].platform == EGL_PLATFORM_DEVICE_EXT ? "device" : "surfaceless");
             snprintf(info->device, sizeof info->device, "%s", cands->c[i].desc);
-            query_limits(info);
+            lu_gpu_query_info(info);
             if (renderer_is_software(info->renderer)) info->is_software = true;
             info->loop_cap = strstr(info->renderer, "llvmpipe") != NULL;
             info->create_seconds = lu_time_seconds() - t0;
@@ -508,9 +518,13 @@ void lu_gpu_context_destroy(lu_gpu_context *ctx) {
     if (!ctx) return;
     pthread_mutex_lock(&g_devices_mu);
     bool last = --ctx->refs == 0;
-    if (last && g_devices[ctx->slot] == ctx) g_devices[ctx->slot] = NULL;
+    if (last && !ctx->caller && g_devices[ctx->slot] == ctx) g_devices[ctx->slot] = NULL;
     pthread_mutex_unlock(&g_devices_mu);
     if (!last) return;
+    if (ctx->caller) {
+        lu_gpu_caller_release(ctx);
+        return;
+    }
     if (eglGetCurrentContext() == ctx->context)
         eglMakeCurrent(ctx->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     eglDestroyContext(ctx->display, ctx->context);
@@ -556,12 +570,21 @@ void lu_gpu_serial_leave(void) {
     pthread_mutex_unlock(&g_serial);
 }
 
-bool lu_gpu_context_is_current(const lu_gpu_context *ctx) { return ctx && eglGetCurrentContext() == ctx->context; }
+bool lu_gpu_context_is_current(const lu_gpu_context *ctx) {
+    if (ctx && ctx->caller) return lu_gpu_caller_is_current(ctx);
+    return ctx && eglGetCurrentContext() == ctx->context;
+}
 
 lu_result lu_gpu_bind_context(lu_gpu_context *ctx, lu_error *err) {
     if (!ctx) return lu_fail(err, LU_ERR_INVALID_ARG, "gpu: NULL context");
     if (ctx->lost) return lu_fail(err, LU_ERR_BACKEND, "gpu: the GPU context was lost (a device reset)");
     t_bound = ctx;
+    if (ctx->caller) {
+        /* Never made current by lucent: it is the caller's to make current. */
+        if (lu_gpu_caller_is_current(ctx)) return LU_OK;
+        return lu_fail(err, LU_ERR_BACKEND,
+                       "gpu: the caller's OpenGL context this renderer was made in is not current on this thread");
+    }
     if (eglGetCurrentContext() == ctx->context) return LU_OK;
     if (!eglBindAPI(EGL_OPENGL_API) ||
         !eglMakeCurrent(ctx->display, EGL_NO_SURFACE, EGL_NO_SURFACE, ctx->context))

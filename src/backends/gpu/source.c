@@ -33,6 +33,7 @@ typedef struct sbuf {
     char *p;
     size_t len, cap;
     bool failed;
+    bool nomem;   /* failed because an allocation did, not the size limit */
 } sbuf;
 
 static void sb_put(sbuf *b, const char *s, size_t n) {
@@ -46,7 +47,7 @@ static void sb_put(sbuf *b, const char *s, size_t n) {
         while (cap < b->len + n + 1) cap *= 2;
         char *q = lu_realloc(b->p, cap);
         if (!q) {
-            b->failed = true;
+            b->failed = b->nomem = true;
             return;
         }
         b->p = q;
@@ -268,9 +269,11 @@ lu_result lu_gpu_assemble(const char *main_name, const char *defines, const lu_g
         if (defines[strlen(defines) - 1] != '\n') sb_puts(&st.out, "\n");
     }
     lu_result r = emit_file(&st, main_name, text, 0);
-    if (r == LU_OK && st.out.failed)
-        r = lu_fail(err, LU_ERR_LIMIT, "%s: assembled shader too large or out of memory (limit %u bytes)",
-                    main_name, LU_GPU_MAX_SOURCE_BYTES);
+    if (r == LU_OK && st.out.nomem)
+        r = lu_fail(err, LU_ERR_NOMEM, "%s: out of memory assembling the shader", main_name);
+    else if (r == LU_OK && st.out.failed)
+        r = lu_fail(err, LU_ERR_LIMIT, "%s: assembled shader too large (limit %u bytes)", main_name,
+                    LU_GPU_MAX_SOURCE_BYTES);
     if (r != LU_OK) {
         lu_free(st.out.p);
         return r;

@@ -79,4 +79,15 @@ lu_result lu_gpu_image2d_download(lu_gpu_texture *tex, float *rgba, lu_error *er
 void lu_gpu_texture_destroy(lu_gpu_texture *tex) {}
 lu_result lu_gpu_texture_bind(lu_gpu_texture *tex, int unit, lu_error *err) { return LU_GPU_NO(err); }
 lu_result lu_gpu_image_bind(lu_gpu_texture *tex, int unit, lu_error *err) { return LU_GPU_NO(err); }
+lu_result lu_gpu_caller_context_create(lu_gpu_context **out, lu_error *err) {
+    *out = NULL;
+    return LU_GPU_NO(err);
+}
+void lu_gpu_caller_use(lu_gpu_context *ctx) { (void)ctx; }
+void lu_gpu_output_target(unsigned texture) { (void)texture; }
+bool lu_gpu_output_written(void) { return false; }
+lu_result lu_gpu_output(lu_gpu_buffer *rgb, int width, int height, float *out, lu_error *err) { return LU_GPU_NO(err); }
+lu_result lu_gpu_texture_put_rgb(unsigned texture, const float *rgb, int width, int height, lu_error *err) {
+    return LU_GPU_NO(err);
+}
 #endif

@@ -161,7 +161,7 @@ lu_result lu_afm_gpu_render(lu_afm_gpu *g, const lu_scene *scene, const lu_afm_g
         int n = h - y0 < rows ? h - y0 : rows;
         r = lu_gpu_dispatch(p, (unsigned)(w + 7) / 8, (unsigned)(n + 7) / 8, 1, err);
     }
-    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[R_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    if (r == LU_OK) r = lu_gpu_output(g->buf[R_OUT], out->width, out->height, out->rgb, err);
     return r;
 }
 

@@ -132,7 +132,7 @@ lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, l
         r = lu_gpu_dispatch(g->prog, (unsigned)f->tiles_x, (unsigned)f->tiles_y, 1, err);
         if (last) break;
     }
-    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    if (r == LU_OK) r = lu_gpu_output(g->buf[B_OUT], out->width, out->height, out->rgb, err);
     if (r != LU_OK) memset(g->have, 0, sizeof g->have);
     return r;
 }

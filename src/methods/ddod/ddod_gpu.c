@@ -129,6 +129,6 @@ lu_result lu_ddod_gpu_render(lu_ddod_gpu *g, const lu_scene *scene, const lu_fra
     set_uniforms(g->pass2, f);
     if (n > 0) r = lu_gpu_dispatch(g->pass1, (unsigned)((n + 63) / 64), 1, 1, err);
     if (r == LU_OK) r = lu_gpu_dispatch(g->pass2, (unsigned)f->P.tiles_x, (unsigned)f->tiles_y, 1, err);
-    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    if (r == LU_OK) r = lu_gpu_output(g->buf[B_OUT], out->width, out->height, out->rgb, err);
     return r;
 }

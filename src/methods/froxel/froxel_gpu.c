@@ -138,6 +138,6 @@ lu_result lu_froxel_gpu_render(lu_froxel_gpu *g, const lu_scene *scene, const lu
         lu_gpu_uniform_int(p, "u_pass", 2);
         r = lu_gpu_dispatch(p, (unsigned)(f->width + 7) / 8, (unsigned)(f->height + 7) / 8, 1, err);
     }
-    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    if (r == LU_OK) r = lu_gpu_output(g->buf[B_OUT], out->width, out->height, out->rgb, err);
     return r;
 }

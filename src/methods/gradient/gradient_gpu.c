@@ -185,7 +185,7 @@ lu_result lu_gradient_gpu_render(lu_gradient_gpu *g, const lu_scene *scene, cons
     lu_gpu_uniform_int(g->prog, "u_pass", PASS_MARCH);
     lu_gpu_uniform_int(g->prog, "u_count", (int)pixels);
     r = lu_gpu_dispatch(g->prog, (unsigned)((pixels + 63) / 64), 1, 1, err);
-    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    if (r == LU_OK) r = lu_gpu_output(g->buf[B_OUT], out->width, out->height, out->rgb, err);
     *ms_march = 1e3 * lu_gpu_time_end(g->ctx, t2);
     return r;
 }

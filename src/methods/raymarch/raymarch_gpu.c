@@ -109,6 +109,6 @@ lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, cons
         r = lu_gpu_dispatch(g->prog, gx, gy, 1, err);
         if (last) break;
     }
-    if (r == LU_OK) r = lu_gpu_buffer_download(g->buf[B_OUT], 0, out->rgb, pixels * 3 * sizeof(float), err);
+    if (r == LU_OK) r = lu_gpu_output(g->buf[B_OUT], out->width, out->height, out->rgb, err);
     return r;
 }
