@@ -292,6 +292,30 @@ static void test_gpu_equals_cpu(void) {
     }
 }
 
+/* Culling leaves unlit only cells beyond every ray end of the pixels that
+ * read their column, so the image is the unculled one: on scenes with
+ * opaque objects in and around the media, both backends. */
+static void test_cull_invisible(void) {
+    static const char *const scenes[] = {"dusty_room", "demo", "cube_torus"};
+    for (int i = 0; i < 3; i++)
+        for (int b = 0; b < 2; b++) {
+            lu_backend be = b ? LU_BACKEND_GPU : LU_BACKEND_CPU;
+            if (lu_test_skip_gpu(be)) continue;
+            const char *grid = "froxel.nx=24 froxel.ny=18 froxel.nz=32 froxel.jitter=0 froxel.reproject=0";
+            char set[256];
+            lu_image a, c;
+            snprintf(set, sizeof set, "%s froxel.cull=0", grid);
+            if (!render1(NULL, scenes[i], "froxel", be, set, &a)) continue;
+            snprintf(set, sizeof set, "%s froxel.cull=1", grid);
+            if (render1(NULL, scenes[i], "froxel", be, set, &c)) {
+                double e = lu_test_rel_l2(&c, &a);
+                CHECK_MSG(e <= 1e-6, "%s (%s): culled image differs by rel-L2 %.3g", scenes[i], b ? "gpu" : "cpu", e);
+                lu_image_destroy(&c);
+            }
+            lu_image_destroy(&a);
+        }
+}
+
 static void test_bad_settings(void) {
     static const char *const bad[] = {"froxel.nx=0",       "froxel.ny=5000",   "froxel.nz=0",
                                       "froxel.nz=2000",    "froxel.blend=1",   "froxel.near=0",
@@ -321,5 +345,6 @@ int main(void) {
     RUN_TEST(test_grid_refinement_dusty_room);
     RUN_TEST(test_reprojection);
     RUN_TEST(test_gpu_equals_cpu);
+    RUN_TEST(test_cull_invisible);
     TEST_EXIT();
 }

@@ -22,6 +22,7 @@
 
 struct lu_k_ctx {
     LU_K_CTX_VIEW_MARCH_MEMBERS
+    const float *reach;    /* per column: the farthest ray end of the pixels reading it */
     const float *cspans;   /* columns * nm * 2 */
     const float *lit;      /* this frame's lit volume */
     const float *hist;     /* the previous frame's */
@@ -38,6 +39,10 @@ static inline float lu_k_rm_surface_vis(const struct lu_k_ctx *c, int pixel, int
 
 static inline float lu_k_fx_span(const struct lu_k_ctx *c, int column, int m, int end) {
     return c->cspans[((size_t)column * c->nm + m) * 2 + end];
+}
+static inline float lu_k_fx_reach(const struct lu_k_ctx *c, int column) { return c->reach[column]; }
+static inline float lu_k_fx_hist_valid(const struct lu_k_ctx *c, int cell) {
+    return c->hist[(size_t)cell * LU_K_FX_CELL_FLOATS + 3];
 }
 static inline lu_vec3 lu_fx_read(const float *p) { return lu_v3(p[0], p[1], p[2]); }
 static inline lu_vec3 lu_k_fx_lit(const struct lu_k_ctx *c, int cell, int part) {
@@ -59,7 +64,7 @@ static inline void lu_k_fx_int_store(const struct lu_k_ctx *c, int node, lu_vec3
 
 _Static_assert(LU_MR_HIT_FLOATS == LU_K_RM_HIT_FLOATS, "camera hit layout");
 
-enum { P_NX, P_NY, P_NZ, P_NEAR, P_JITTER, P_REPROJECT, P_BLEND, P_SHADOW_RES, P_T_CUT, P_COUNT };
+enum { P_NX, P_NY, P_NZ, P_NEAR, P_JITTER, P_REPROJECT, P_BLEND, P_CULL, P_SHADOW_RES, P_T_CUT, P_COUNT };
 
 static const lu_param_desc k_params[P_COUNT] = {
     [P_NX] = {"nx", LU_PARAM_INT, 160, 1, 4096, NULL, "grid columns across the image"},
@@ -76,6 +81,9 @@ static const lu_param_desc k_params[P_COUNT] = {
                      "blend each cell with the previous frame's lit volume at the same world point"},
     [P_BLEND] = {"blend", LU_PARAM_FLOAT, 0.9, 0, 0.99, NULL,
                  "weight of the previous frame in the reprojection blend"},
+    [P_CULL] = {"cull", LU_PARAM_BOOL, 1, 0, 1, NULL,
+                "leave unlit the cells beyond the farthest opaque hit of the pixels that read their column (the "
+                "image is the same; culled cells give no history)"},
     [P_SHADOW_RES] = {"shadow_res", LU_PARAM_INT, 512, 16, 4096, NULL,
                       "shadow map resolution per light view (opaque objects only; media use exact optical depth)"},
     [P_T_CUT] = LU_VIEW_MARCH_T_CUT_PARAM,
@@ -83,7 +91,7 @@ static const lu_param_desc k_params[P_COUNT] = {
 
 typedef struct fx_state {
     lu_backend backend;
-    int nx, ny, nz, jitter, reproject, res;
+    int nx, ny, nz, jitter, reproject, cull, res;
     float near, blend, t_cut;
     lu_media_rays mr;
     float eps;
@@ -91,8 +99,8 @@ typedef struct fx_state {
     const lu_scene *scene;
     struct lu_k_ctx kctx;
     lu_image *out;
-    /* the grid: column spans (camera, geometry), lit volumes (ping-pong),
-     * integrated volume */
+    /* the grid: per column its reach then its spans (camera, geometry), lit
+     * volumes (ping-pong), integrated volume */
     float *cspans, *lit[2], *integ;
     bool cspans_valid, volume_valid;
     int cur;                      /* lit[cur] is this frame's */
@@ -125,6 +133,7 @@ static lu_result fx_prepare(const lu_scene *scene, const double *params, lu_back
     st->jitter = (int)params[P_JITTER];
     st->reproject = (int)params[P_REPROJECT];
     st->blend = (float)params[P_BLEND];
+    st->cull = (int)params[P_CULL];
     st->res = (int)params[P_SHADOW_RES];
     st->t_cut = (float)params[P_T_CUT];
     st->eps = lu_scene_ray_epsilon(scene);
@@ -137,7 +146,7 @@ static lu_result fx_prepare(const lu_scene *scene, const double *params, lu_back
                     st->nz, cells, 1 << 26);
     if (r == LU_OK) {
         size_t columns = (size_t)st->nx * st->ny;
-        st->cspans = lu_malloc(columns * (size_t)(scene->medium_count > 0 ? scene->medium_count : 1) * 2 * sizeof(float));
+        st->cspans = lu_malloc(columns * (1 + (size_t)scene->medium_count * 2) * sizeof(float));
         for (int b = 0; b < 2; b++) st->lit[b] = lu_calloc(cells * LU_K_FX_CELL_FLOATS, sizeof(float));
         st->integ = lu_calloc((cells + columns) * LU_K_FX_CELL_FLOATS, sizeof(float));
         if (!st->cspans || !st->lit[0] || !st->lit[1] || !st->integ)
@@ -190,7 +199,8 @@ static void column_spans(void *ctx, int64_t begin, int64_t end, int thread) {
     int nm = st->mr.medium_count;
     for (int64_t c = begin; c < end; c++) {
         lu_vec3 d = lu_k_fx_column_dir(st->fx.grid, (int)(c % st->nx), (int)(c / st->nx));
-        lu_media_ray_spans(&st->mr, st->fx.grid.origin, d, LU_K_FAR, st->cspans + (size_t)c * nm * 2, NULL);
+        lu_media_ray_spans(&st->mr, st->fx.grid.origin, d, LU_K_FAR,
+                           st->cspans + (size_t)st->nx * st->ny + (size_t)c * nm * 2, NULL);
     }
 }
 
@@ -204,9 +214,10 @@ static void light_cells(void *ctx, int64_t begin, int64_t end, int thread) {
     for (int64_t c = begin; c < end; c++) {
         int k = (int)(c / per_slice), ij = (int)(c % per_slice);
         lu_vec3 S, sig;
-        lu_k_fx_light(&st->kctx, P, fx->grid, ij % st->nx, ij / st->nx, k, fx->history, fx->prev, fx->blend, &S, &sig);
+        float lit_flag = lu_k_fx_light(&st->kctx, P, fx->grid, ij % st->nx, ij / st->nx, k, fx->history, fx->prev,
+                                       fx->blend, fx->cull, &S, &sig);
         float *p = lit + (size_t)c * LU_K_FX_CELL_FLOATS;
-        p[0] = S.x, p[1] = S.y, p[2] = S.z, p[3] = 0.0f;
+        p[0] = S.x, p[1] = S.y, p[2] = S.z, p[3] = lit_flag;
         p[4] = sig.x, p[5] = sig.y, p[6] = sig.z, p[7] = 0.0f;
     }
 }
@@ -226,6 +237,24 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
             lu_vec3 L = lu_k_fx_pixel(&st->kctx, P, st->fx.grid, x, (int)y);
             float *o = lu_image_px(st->out, x, (int)y);
             o[0] = L.x, o[1] = L.y, o[2] = L.z;
+        }
+}
+
+/* Each column's reach: the farthest ray end (opaque hit, or LU_K_FAR) of
+ * the pixels whose lookup reads it (lu_k_fx_pixel_columns). */
+static void column_reach(fx_state *st) {
+    const lu_k_fx_grid *G = &st->fx.grid;
+    float *reach = st->cspans;
+    for (int c = 0; c < G->nx * G->ny; c++) reach[c] = 0.0f;
+    for (int y = 0; y < G->height; y++)
+        for (int x = 0; x < G->width; x++) {
+            float t = st->mr.hits[((size_t)y * G->width + x) * LU_MR_HIT_FLOATS + 3];
+            float t_end = t >= 0.0f ? t : LU_K_FAR;
+            int i0, i1, j0, j1;
+            float ax, ay;
+            lu_k_fx_pixel_columns(*G, x, y, &i0, &i1, &j0, &j1, &ax, &ay);
+            int cols[4] = {j0 * G->nx + i0, j0 * G->nx + i1, j1 * G->nx + i0, j1 * G->nx + i1};
+            for (int q = 0; q < 4; q++) reach[cols[q]] = fmaxf(reach[cols[q]], t_end);
         }
 }
 
@@ -264,6 +293,7 @@ static lu_result fx_render(void *state, const lu_frame *frame, lu_image *out, lu
         fx->history = st->reproject && st->volume_valid;
         fx->prev = prev;
         fx->blend = st->blend;
+        fx->cull = st->cull;
         fx->grid = fx_grid(st, frame, st->jitter ? fx_jitter(st->frames) : 0.5f);
         st->frames++;
         st->cur ^= 1;
@@ -272,6 +302,7 @@ static lu_result fx_render(void *state, const lu_frame *frame, lu_image *out, lu
     if (spans_stale) {
         st->cspans_valid = false;
         lu_parallel_for((int64_t)st->nx * st->ny, 64, column_spans, st, NULL);
+        column_reach(st);
         st->cspans_valid = true;
         fx->spans_version++;
     }
@@ -280,8 +311,8 @@ static lu_result fx_render(void *state, const lu_frame *frame, lu_image *out, lu
         st->volume_valid = r == LU_OK;
         return r;
     }
-    st->kctx = (struct lu_k_ctx){LU_K_CTX_SCENE(scene, frame->rec), f, st->mr.views, st->cspans, st->lit[st->cur],
-                                 st->lit[st->cur ^ 1], st->integ};
+    st->kctx = (struct lu_k_ctx){LU_K_CTX_SCENE(scene, frame->rec), f, st->mr.views, st->cspans,
+                                 st->cspans + (size_t)st->nx * st->ny, st->lit[st->cur], st->lit[st->cur ^ 1], st->integ};
     if (relight) {
         lu_parallel_for((int64_t)st->nx * st->ny * st->nz, 256, light_cells, st, NULL);
         lu_parallel_for((int64_t)st->nx * st->ny, 16, integrate_columns, st, NULL);

@@ -27,13 +27,17 @@ uniform lu_k_fx_grid u_g;    /* this frame's grid */
 uniform lu_k_fx_grid u_p;    /* the previous frame's */
 uniform int u_history;
 uniform float u_blend;
+uniform int u_cull;
 
 float lu_k_rm_surface_vis(LU_CTX_PARAM, int pixel, int l) { return fx_surface_vis[pixel * lu_scene_light_count() + l]; }
 #define LU_K_RM_SURFACE_VIS(l, pixel, x, n) lu_k_rm_surface_vis(LU_CTX, pixel, l)
 
+/* FxColumnSpans: each column's reach, then its spans (froxel.c). */
+float lu_k_fx_reach(LU_CTX_PARAM, int column) { return fx_cspans[column]; }
 float lu_k_fx_span(LU_CTX_PARAM, int column, int m, int end) {
-    return fx_cspans[(column * lu_scene_medium_count() + m) * 2 + end];
+    return fx_cspans[u_g.nx * u_g.ny + (column * lu_scene_medium_count() + m) * 2 + end];
 }
+float lu_k_fx_hist_valid(LU_CTX_PARAM, int cell) { return fx_hist[cell * LU_K_FX_CELL_FLOATS + 3]; }
 vec3 lu_k_fx_lit(LU_CTX_PARAM, int cell, int part) {
     int b = cell * LU_K_FX_CELL_FLOATS + 4 * part;
     return vec3(fx_lit[b], fx_lit[b + 1], fx_lit[b + 2]);
@@ -85,12 +89,12 @@ void main() {
         return;
     }
     vec3 S = vec3(0.0), sig = vec3(0.0);
-    lu_k_fx_light(0, P, G, x, y, k, u_history, u_p, u_blend, S, sig);
+    float lit = lu_k_fx_light(0, P, G, x, y, k, u_history, u_p, u_blend, u_cull, S, sig);
     int b = lu_k_fx_cell(G, x, y, k) * LU_K_FX_CELL_FLOATS;
     fx_lit[b] = S.x;
     fx_lit[b + 1] = S.y;
     fx_lit[b + 2] = S.z;
-    fx_lit[b + 3] = 0.0;
+    fx_lit[b + 3] = lit;
     fx_lit[b + 4] = sig.x;
     fx_lit[b + 5] = sig.y;
     fx_lit[b + 6] = sig.z;

@@ -14,7 +14,8 @@ typedef struct lu_fx_frame {
     lu_k_fx_grid grid, prev;
     int history;                 /* 1: blend with the previous lit volume */
     float blend;
-    unsigned spans_version;
+    int cull;                    /* 1: leave cells beyond their column's reach unlit */
+    unsigned spans_version;      /* reach and spans */
 } lu_fx_frame;
 
 typedef struct lu_froxel_gpu lu_froxel_gpu;

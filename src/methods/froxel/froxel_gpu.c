@@ -86,7 +86,6 @@ lu_result lu_froxel_gpu_render(lu_froxel_gpu *g, const lu_scene *scene, const lu
     size_t pixels = (size_t)f->width * f->height;
     size_t texels = (size_t)f->map_res * f->map_res;
     size_t columns = (size_t)G->nx * G->ny, cells = columns * (size_t)G->nz;
-    int nm = f->medium_count > 0 ? f->medium_count : 1;
     lu_result r = lu_gpu_scene_update(g->scene, scene, rec, err);
     if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
     if (r == LU_OK) r = put_kept(g, B_HITS, f->hits, pixels * 16 * sizeof(float), f->hits_version, err);
@@ -103,7 +102,8 @@ lu_result lu_froxel_gpu_render(lu_froxel_gpu *g, const lu_scene *scene, const lu
     if (r == LU_OK)
         r = put_kept(g, B_SURFVIS, f->surface_vis, pixels * (size_t)f->light_count * sizeof(float), f->vis_version,
                      err);
-    if (r == LU_OK) r = put_kept(g, B_CSPANS, cspans, columns * nm * 2 * sizeof(float), fx->spans_version, err);
+    if (r == LU_OK) r = put_kept(g, B_CSPANS, cspans, columns * (1 + (size_t)f->medium_count * 2) * sizeof(float),
+                                  fx->spans_version, err);
     if (r == LU_OK && relight) g->cur ^= 1;
     if (r == LU_OK)
         r = lu_gpu_buffer_put(g->ctx, &g->lit[g->cur], NULL, cells * LU_K_FX_CELL_FLOATS * sizeof(float),
@@ -122,6 +122,7 @@ lu_result lu_froxel_gpu_render(lu_froxel_gpu *g, const lu_scene *scene, const lu
     set_grid(p, "u_p", &fx->prev);
     lu_gpu_uniform_int(p, "u_history", fx->history);
     lu_gpu_uniform_float(p, "u_blend", fx->blend);
+    lu_gpu_uniform_int(p, "u_cull", fx->cull);
     unsigned cx = (unsigned)(G->nx + 7) / 8, cy = (unsigned)(G->ny + 7) / 8;
     /* One cell (pass 0) runs one sample of the view march's in-scattering,
      * and one column (pass 1) nz slices: both far below llvmpipe's loop

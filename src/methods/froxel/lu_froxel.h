@@ -30,6 +30,8 @@
  * Hooks the backend defines (besides lu_view_march.h's):
  *   float lu_k_fx_span(LU_CTX_PARAM, int column, int m, int end);  (bounded-media span of a column's ray)
  *   vec3 lu_k_fx_hist(LU_CTX_PARAM, int cell, int part);  (previous lit volume: part 0 S, 1 sigma_t)
+ *   float lu_k_fx_hist_valid(LU_CTX_PARAM, int cell);      (1: that cell was lit, 0: culled)
+ *   float lu_k_fx_reach(LU_CTX_PARAM, int column);         (farthest ray end of the pixels reading the column)
  *   vec3 lu_k_fx_lit(LU_CTX_PARAM, int cell, int part);   (this frame's lit volume)
  *   vec3 lu_k_fx_int(LU_CTX_PARAM, int node, int part);   (integrated volume: part 0 L, 1 tau)
  *   void lu_k_fx_int_store(LU_CTX_PARAM, int node, vec3 L, vec3 tau);
@@ -61,26 +63,38 @@ LU_FN vec3 lu_k_fx_column_dir(lu_k_fx_grid G, int i, int j) {
 
 LU_FN int lu_k_fx_cell(lu_k_fx_grid G, int i, int j, int k) { return (k * G.ny + j) * G.nx + i; }
 
-/* Trilinear read of a lit volume (cur 1: this frame's, 0: the previous one)
- * at cell coordinates (gx, gy, gz) (cell centres at integers), clamped to
- * the grid. */
-LU_FN vec3 lu_k_fx_lit_at(LU_CTX_PARAM, lu_k_fx_grid G, int cur, int part, float gx, float gy, float gz) {
+/* Trilinear read of the previous lit volume at cell coordinates (gx, gy,
+ * gz) (cell centres at integers, clamped to the grid), over the cells that
+ * were lit (culled cells, behind every pixel's ray end, have no history):
+ * the weights are renormalised over those; returns their total weight (0:
+ * no history there). */
+LU_FN float lu_k_fx_hist_at(LU_CTX_PARAM, lu_k_fx_grid G, float gx, float gy, float gz, LU_OUT(vec3) S_out,
+                            LU_OUT(vec3) sig_out) {
     gx = lu_clamp(gx, 0.0f, lu_float(G.nx - 1));
     gy = lu_clamp(gy, 0.0f, lu_float(G.ny - 1));
     gz = lu_clamp(gz, 0.0f, lu_float(G.nz - 1));
     int i0 = lu_min(lu_int(gx), G.nx - 1), j0 = lu_min(lu_int(gy), G.ny - 1), k0 = lu_min(lu_int(gz), G.nz - 1);
     float ax = gx - lu_float(i0), ay = gy - lu_float(j0), az = gz - lu_float(k0);
     int i1 = lu_min(i0 + 1, G.nx - 1), j1 = lu_min(j0 + 1, G.ny - 1), k1 = lu_min(k0 + 1, G.nz - 1);
-    vec3 acc = lu_v3s(0.0f);
+    vec3 S = lu_v3s(0.0f), sig = lu_v3s(0.0f);
+    float wsum = 0.0f;
     for (int c = 0; c < 8; c++) {
         int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
         float w = (di != 0 ? ax : 1.0f - ax) * (dj != 0 ? ay : 1.0f - ay) * (dk != 0 ? az : 1.0f - az);
         if (w <= 0.0f) continue;
         int cell = lu_k_fx_cell(G, di != 0 ? i1 : i0, dj != 0 ? j1 : j0, dk != 0 ? k1 : k0);
-        vec3 v = cur != 0 ? lu_k_fx_lit(LU_CTX, cell, part) : lu_k_fx_hist(LU_CTX, cell, part);
-        acc = lu_v3_madd(acc, v, w);
+        if (lu_k_fx_hist_valid(LU_CTX, cell) <= 0.0f) continue;
+        S = lu_v3_madd(S, lu_k_fx_hist(LU_CTX, cell, 0), w);
+        sig = lu_v3_madd(sig, lu_k_fx_hist(LU_CTX, cell, 1), w);
+        wsum += w;
     }
-    return acc;
+    if (wsum > 0.0f) {
+        S = lu_v3_scale(S, 1.0f / wsum);
+        sig = lu_v3_scale(sig, 1.0f / wsum);
+    }
+    LU_DEREF(S_out) = S;
+    LU_DEREF(sig_out) = sig;
+    return wsum;
 }
 
 /* Where world point x lies in grid Gp (cell coordinates): false when it is
@@ -106,9 +120,15 @@ LU_FN bool lu_k_fx_locate(lu_k_fx_grid Gp, vec3 x, LU_OUT(vec3) g) {
 
 /* Pass 1 for cell (i, j, k): source S and extinction sig at the cell's
  * sample; with history (Gp: the previous frame's grid) both are blended
- * with the previous lit volume at the same world point, weight alpha. */
-LU_FN void lu_k_fx_light(LU_CTX_PARAM, lu_k_rm_params P, lu_k_fx_grid G, int i, int j, int k, int history,
-                         lu_k_fx_grid Gp, float alpha, LU_OUT(vec3) S_out, LU_OUT(vec3) sig_out) {
+ * with the previous lit volume at the same world point, weight alpha.
+ * A cell that starts beyond its column's reach (the farthest ray end of the
+ * pixels that read the column; cull != 0) is never seen: it is left unlit
+ * (returns 0; lit cells return 1). */
+LU_FN float lu_k_fx_light(LU_CTX_PARAM, lu_k_rm_params P, lu_k_fx_grid G, int i, int j, int k, int history,
+                          lu_k_fx_grid Gp, float alpha, int cull, LU_OUT(vec3) S_out, LU_OUT(vec3) sig_out) {
+    LU_DEREF(S_out) = lu_v3s(0.0f);
+    LU_DEREF(sig_out) = lu_v3s(0.0f);
+    if (cull != 0 && lu_float(k) > lu_k_fx_slice_s(G, lu_k_fx_reach(LU_CTX, j * G.nx + i))) return 0.0f;
     vec3 d = lu_k_fx_column_dir(G, i, j);
     int column = j * G.nx + i;
     float ta = lu_k_fx_slice_t(G, lu_float(k)), tb = lu_k_fx_slice_t(G, lu_float(k + 1));
@@ -137,16 +157,15 @@ LU_FN void lu_k_fx_light(LU_CTX_PARAM, lu_k_rm_params P, lu_k_fx_grid G, int i, 
     vec3 S = Se;
     if (scatters) S = lu_v3_add(S, LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, ta - t, tb - t, dens, nm));
     if (history != 0) {
-        vec3 g = lu_v3s(0.0f);
-        if (lu_k_fx_locate(Gp, x, LU_REF(g))) {
-            vec3 Sh = lu_k_fx_lit_at(LU_CTX, Gp, 0, 0, g.x, g.y, g.z);
-            vec3 sh = lu_k_fx_lit_at(LU_CTX, Gp, 0, 1, g.x, g.y, g.z);
+        vec3 g = lu_v3s(0.0f), Sh = lu_v3s(0.0f), sh = lu_v3s(0.0f);
+        if (lu_k_fx_locate(Gp, x, LU_REF(g)) && lu_k_fx_hist_at(LU_CTX, Gp, g.x, g.y, g.z, LU_REF(Sh), LU_REF(sh)) > 0.0f) {
             S = lu_v3_add(lu_v3_scale(S, 1.0f - alpha), lu_v3_scale(Sh, alpha));
             sig = lu_v3_add(lu_v3_scale(sig, 1.0f - alpha), lu_v3_scale(sh, alpha));
         }
     }
     LU_DEREF(S_out) = S;
     LU_DEREF(sig_out) = sig;
+    return 1.0f;
 }
 
 /* Pass 2 for column (i, j): nodes k = 0..nz of the integrated volume (node
@@ -173,6 +192,21 @@ LU_FN void lu_k_fx_integrate(LU_CTX_PARAM, lu_k_fx_grid G, int i, int j) {
     }
 }
 
+/* The columns pixel (x, y) reads (i0..i1, j0..j1) and its bilinear weights
+ * towards i1, j1 (the lookup of pass 3, and the CPU's column reach). */
+LU_FN void lu_k_fx_pixel_columns(lu_k_fx_grid G, int x, int y, LU_OUT(int) i0, LU_OUT(int) i1, LU_OUT(int) j0,
+                                 LU_OUT(int) j1, LU_OUT(float) ax, LU_OUT(float) ay) {
+    float gx = lu_clamp((lu_float(x) + 0.5f) * lu_float(G.nx) / lu_float(G.width) - 0.5f, 0.0f, lu_float(G.nx - 1));
+    float gy = lu_clamp((lu_float(y) + 0.5f) * lu_float(G.ny) / lu_float(G.height) - 0.5f, 0.0f, lu_float(G.ny - 1));
+    int a = lu_min(lu_int(gx), G.nx - 1), b = lu_min(lu_int(gy), G.ny - 1);
+    LU_DEREF(i0) = a;
+    LU_DEREF(j0) = b;
+    LU_DEREF(i1) = lu_min(a + 1, G.nx - 1);
+    LU_DEREF(j1) = lu_min(b + 1, G.ny - 1);
+    LU_DEREF(ax) = gx - lu_float(a);
+    LU_DEREF(ay) = gy - lu_float(b);
+}
+
 /* Pass 3 for image pixel (x, y): the integrated volume at the pixel's ray
  * end, over the surface or background (lu_k_rm_finish). */
 LU_FN vec3 lu_k_fx_pixel(LU_CTX_PARAM, lu_k_rm_params P, lu_k_fx_grid G, int x, int y) {
@@ -180,11 +214,11 @@ LU_FN vec3 lu_k_fx_pixel(LU_CTX_PARAM, lu_k_rm_params P, lu_k_fx_grid G, int x, 
     vec3 d = lu_k_camera_dir(G.cam, lu_float(x) + 0.5f, lu_float(y) + 0.5f);
     lu_k_rm_hit hit = lu_k_rm_hit_get(LU_CTX, pixel);
     float s = lu_k_fx_slice_s(G, hit.t >= 0.0f ? hit.t : LU_K_FAR);
-    float gx = lu_clamp((lu_float(x) + 0.5f) * lu_float(G.nx) / lu_float(G.width) - 0.5f, 0.0f, lu_float(G.nx - 1));
-    float gy = lu_clamp((lu_float(y) + 0.5f) * lu_float(G.ny) / lu_float(G.height) - 0.5f, 0.0f, lu_float(G.ny - 1));
-    int i0 = lu_min(lu_int(gx), G.nx - 1), j0 = lu_min(lu_int(gy), G.ny - 1), k0 = lu_min(lu_int(s), G.nz - 1);
-    float ax = gx - lu_float(i0), ay = gy - lu_float(j0), az = s - lu_float(k0);
-    int i1 = lu_min(i0 + 1, G.nx - 1), j1 = lu_min(j0 + 1, G.ny - 1);
+    int i0 = 0, i1 = 0, j0 = 0, j1 = 0;
+    float ax = 0.0f, ay = 0.0f;
+    lu_k_fx_pixel_columns(G, x, y, LU_REF(i0), LU_REF(i1), LU_REF(j0), LU_REF(j1), LU_REF(ax), LU_REF(ay));
+    int k0 = lu_min(lu_int(s), G.nz - 1);
+    float az = s - lu_float(k0);
     int nodes = G.nx * G.ny;
     vec3 L = lu_v3s(0.0f), tau = lu_v3s(0.0f);
     for (int c = 0; c < 8; c++) {

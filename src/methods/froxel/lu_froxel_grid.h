@@ -6,7 +6,7 @@
 
 #include "kernels/lu_camera.h"
 
-/* Floats per lit cell (S, pad, sigma_t, pad) and per integrated node
+/* Floats per lit cell (S, lit: 1 or 0 where culled, sigma_t, pad) and per integrated node
  * (L, pad, tau, pad): the CPU arrays are the GPU's float buffers. */
 #define LU_K_FX_CELL_FLOATS 8
 #define LU_K_FX_MAX_NZ 1024
