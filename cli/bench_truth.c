@@ -12,6 +12,7 @@
 #include <cjson/cJSON.h>
 
 #include "bench_truth.h"
+#include "core/fnv.h"
 
 /* Bumped whenever what a cached truth means changes without a lucent
  * version change (the rule, the file layout). */
@@ -19,30 +20,19 @@
 
 /* ---- the key ------------------------------------------------------------- */
 
-typedef struct fnv {
-    uint64_t h;
-} fnv;
 
-static void fnv_bytes(fnv *f, const void *data, size_t n) {
-    const unsigned char *p = data;
-    for (size_t i = 0; i < n; i++) {
-        f->h ^= p[i];
-        f->h *= 0x100000001b3ull;
-    }
-}
-
-static void fnv_str(fnv *f, const char *s) { fnv_bytes(f, s, strlen(s) + 1); }
-static void fnv_int(fnv *f, int64_t v) { fnv_bytes(f, &v, sizeof v); }
+static void fnv_str(lu_fnv *f, const char *s) { lu_fnv_bytes(f, s, strlen(s) + 1); }
+static void fnv_int(lu_fnv *f, int64_t v) { lu_fnv_bytes(f, &v, sizeof v); }
 
 /* A file's bytes, streamed. */
-static lu_result fnv_file(fnv *f, const char *path, lu_error *err) {
+static lu_result fnv_file(lu_fnv *f, const char *path, lu_error *err) {
     FILE *fp = fopen(path, "rb");
     if (!fp) return lu_fail(err, LU_ERR_IO, "%s: %s", path, strerror(errno));
     static unsigned char buf[1 << 16];
     size_t n;
     uint64_t total = 0;
     while ((n = fread(buf, 1, sizeof buf, fp)) > 0) {
-        fnv_bytes(f, buf, n);
+        lu_fnv_bytes(f, buf, n);
         total += n;
     }
     bool bad = ferror(fp);
@@ -56,7 +46,7 @@ static lu_result fnv_file(fnv *f, const char *path, lu_error *err) {
  * the scene's folder or absolute) is a data file the truth depends on:
  * grids, meshes, environment maps, whatever key names them, so a new kind
  * of file needs nothing here. */
-static lu_result fnv_json_files(fnv *f, const cJSON *node, const char *scene_path, int depth, lu_error *err) {
+static lu_result fnv_json_files(lu_fnv *f, const cJSON *node, const char *scene_path, int depth, lu_error *err) {
     if (depth > 64) return LU_OK;
     if (cJSON_IsString(node) && node->valuestring && *node->valuestring && strlen(node->valuestring) < 1000) {
         char path[1100];
@@ -73,12 +63,12 @@ static lu_result fnv_json_files(fnv *f, const cJSON *node, const char *scene_pat
     return r;
 }
 
-static void fnv_grid(fnv *f, const lu_grid *g) {
-    fnv_bytes(f, &g->nx, 3 * sizeof(int));
-    if (g->data) fnv_bytes(f, g->data, (size_t)g->nx * g->ny * g->nz * sizeof(float));
+static void fnv_grid(lu_fnv *f, const lu_grid *g) {
+    lu_fnv_bytes(f, &g->nx, 3 * sizeof(int));
+    if (g->data) lu_fnv_bytes(f, g->data, (size_t)g->nx * g->ny * g->nz * sizeof(float));
     else if (g->tree) {
-        fnv_bytes(f, g->tree, (size_t)g->tree_bytes);
-        fnv_bytes(f, g->tree_lo, sizeof g->tree_lo);
+        lu_fnv_bytes(f, g->tree, (size_t)g->tree_bytes);
+        lu_fnv_bytes(f, g->tree_lo, sizeof g->tree_lo);
     }
 }
 
@@ -88,10 +78,10 @@ static void fnv_grid(fnv *f, const lu_grid *g) {
  * size, the motion state, and pathtrace's resolved parameters. */
 static lu_result truth_key(const lu_scene *scene, const char *scene_path, const double *params, int nparams,
                            const char *state, int block_wanted, int max_spp, uint64_t *key, lu_error *err) {
-    fnv f = {0xcbf29ce484222325ull};
+    lu_fnv f = LU_FNV_INIT;
     fnv_str(&f, LU_VERSION_STRING);
     fnv_int(&f, TRUTH_FORMAT);
-    fnv_bytes(&f, &(double){LU_TRUTH_NOISE_TARGET}, sizeof(double));
+    lu_fnv_bytes(&f, &(double){LU_TRUTH_NOISE_TARGET}, sizeof(double));
     fnv_int(&f, LU_TRUTH_BLOCK);
     fnv_int(&f, max_spp);
     fnv_int(&f, block_wanted);
@@ -99,7 +89,7 @@ static lu_result truth_key(const lu_scene *scene, const char *scene_path, const 
     size_t size = 0;
     lu_result r = lu_read_file(scene_path, (size_t)64 << 20, &text, &size, err);
     if (r != LU_OK) return r;
-    fnv_bytes(&f, text, size);
+    lu_fnv_bytes(&f, text, size);
     cJSON *root = cJSON_ParseWithLength(text, size);
     lu_free(text);
     if (root) {
@@ -117,7 +107,7 @@ static lu_result truth_key(const lu_scene *scene, const char *scene_path, const 
     fnv_int(&f, scene->camera.height);
     fnv_str(&f, state);
     fnv_int(&f, nparams);
-    fnv_bytes(&f, params, (size_t)nparams * sizeof *params);
+    lu_fnv_bytes(&f, params, (size_t)nparams * sizeof *params);
     *key = f.h;
     return LU_OK;
 }
@@ -136,8 +126,8 @@ typedef struct truth_header {
 } truth_header;
 
 static uint64_t pixels_checksum(const lu_image *img) {
-    fnv f = {0xcbf29ce484222325ull};
-    fnv_bytes(&f, img->rgb, (size_t)img->width * img->height * 3 * sizeof(float));
+    lu_fnv f = LU_FNV_INIT;
+    lu_fnv_bytes(&f, img->rgb, (size_t)img->width * img->height * 3 * sizeof(float));
     return f.h;
 }
 

@@ -147,12 +147,41 @@ static void gpu_matches_cpu(const lu_scene *s, const char *defines) {
         printf("  density max |diff| %.3g, optical depth max rel diff %.3g over %d rays (%d through the grid)\n",
                max_dd, max_dt, N, nonzero);
     }
-    /* Moving the camera and a light re-uploads records; a grid change is refused. */
+    /* Each update uploads only what differs from what the GPU holds: a
+     * camera move nothing but the header, a light its buffer, a medium's
+     * coefficients or an edited grid (new majorants) the media buffer. A
+     * grid of another size is refused. */
     if (gs) {
         lu_scene s2 = *s;
         lu_frame_records rec = {0};
+        int m0, l0, m1, l1;
         CHECK_OK(lu_frame_records_update(&rec, &s2, &err), &err);
         CHECK_OK(lu_gpu_scene_update(gs, &s2, &rec, &err), &err);
+        lu_gpu_scene_uploads(gs, &m0, &l0);
+        CHECK_MSG(m0 >= 1 && l0 >= 1, "first update: media %d, lights %d uploads", m0, l0);
+        s2.camera.position = lu_v3_add(s2.camera.position, lu_v3(0.1f, 0.0f, 0.0f));
+        CHECK_OK(lu_frame_records_update(&rec, &s2, &err), &err);
+        CHECK_OK(lu_gpu_scene_update(gs, &s2, &rec, &err), &err);
+        lu_gpu_scene_uploads(gs, &m1, &l1);
+        CHECK_MSG(m1 == m0 && l1 == l0, "camera move: media %d -> %d, lights %d -> %d uploads", m0, m1, l0, l1);
+        lu_light lights[8];
+        if (s2.light_count > 0 && s2.light_count <= 8) {
+            memcpy(lights, s2.lights, (size_t)s2.light_count * sizeof *lights);
+            s2.lights = lights;
+            lights[0].intensity = lu_v3_scale(lights[0].intensity, 2.0f);
+            CHECK_OK(lu_frame_records_update(&rec, &s2, &err), &err);
+            CHECK_OK(lu_gpu_scene_update(gs, &s2, &rec, &err), &err);
+            lu_gpu_scene_uploads(gs, &m1, &l1);
+            CHECK_MSG(m1 == m0 && l1 == l0 + 1, "light change: media %d -> %d, lights %d -> %d", m0, m1, l0, l1);
+        }
+        lu_medium media[LU_SCENE_MAX_MEDIA];
+        memcpy(media, s2.media, (size_t)s2.medium_count * sizeof *media);
+        s2.media = media;
+        media[0].sigma_s = lu_v3_scale(media[0].sigma_s, 0.5f);
+        CHECK_OK(lu_frame_records_update(&rec, &s2, &err), &err);
+        CHECK_OK(lu_gpu_scene_update(gs, &s2, &rec, &err), &err);
+        lu_gpu_scene_uploads(gs, &m1, &l1);
+        CHECK_MSG(m1 == m0 + 1, "medium change: media %d -> %d uploads", m0, m1);
         s2.medium_count = 1;
         CHECK(lu_gpu_scene_update(gs, &s2, &rec, &err) == LU_ERR_INVALID_ARG);
         lu_frame_records_free(&rec);

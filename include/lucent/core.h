@@ -21,9 +21,9 @@ extern "C" {
  * something is added; PATCH for fixes only. CMake reads the project version
  * from these three lines, so the header is the one place it is written. */
 #define LU_VERSION_MAJOR 0
-#define LU_VERSION_MINOR 2
+#define LU_VERSION_MINOR 3
 #define LU_VERSION_PATCH 0
-#define LU_VERSION_STRING "0.2.0"
+#define LU_VERSION_STRING "0.3.0"
 /* One number that orders versions: (MAJOR << 16) | (MINOR << 8) | PATCH. */
 #define LU_VERSION ((LU_VERSION_MAJOR << 16) | (LU_VERSION_MINOR << 8) | LU_VERSION_PATCH)
 

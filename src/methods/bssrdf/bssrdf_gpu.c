@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "backends/gpu.h"
+#include "methods/common/gpu_method.h"
 
 enum { B_DATA, B_SHADOW, B_SPLATS, B_GBUF, B_TSTART, B_TLIST, B_OUT, B_SCATTER, B_COUNT };
 
@@ -14,9 +14,7 @@ enum { B_DATA, B_SHADOW, B_SPLATS, B_GBUF, B_TSTART, B_TLIST, B_OUT, B_SCATTER, 
 #define LU_BSSRDF_GPU_CHUNK 32768
 
 struct lu_bssrdf_gpu {
-    lu_gpu_context *ctx;
-    lu_gpu_program *prog;
-    lu_gpu_buffer *buf[B_COUNT];
+    lu_gpu_method m;          /* no scene records: slots B_* from binding 0 */
     size_t size[B_COUNT];
     float *staging;           /* the concatenated fetch arrays */
     size_t staging_cap, staging_floats;
@@ -28,10 +26,10 @@ lu_result lu_bssrdf_gpu_create(lu_bssrdf_gpu **out, lu_error *err) {
     *out = NULL;
     lu_bssrdf_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
-    lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
-    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/bssrdf/bssrdf.comp", NULL, &g->prog, err);
+    static const lu_gpu_method_program programs[] = {{"methods/bssrdf/bssrdf.comp", NULL}, {NULL, NULL}};
+    lu_result r = lu_gpu_method_init(&g->m, NULL, programs, err);
     if (r != LU_OK) {
-        lu_bssrdf_gpu_destroy(g);
+        lu_free(g);
         return r;
     }
     *out = g;
@@ -40,35 +38,31 @@ lu_result lu_bssrdf_gpu_create(lu_bssrdf_gpu **out, lu_error *err) {
 
 void lu_bssrdf_gpu_destroy(lu_bssrdf_gpu *g) {
     if (!g) return;
-    for (int i = 0; i < B_COUNT; i++) lu_gpu_buffer_destroy(g->buf[i]);
-    lu_gpu_program_destroy(g->prog);
-    lu_gpu_context_destroy(g->ctx);
+    lu_gpu_method_release(&g->m);
     lu_free(g->staging);
     lu_free(g);
 }
 
-/* Uploads into buffer slot i, growing it when needed; binds it at i.
- * keep: the slot already holds these bytes (a previous frame's upload). */
 static lu_result put(lu_bssrdf_gpu *g, int i, const void *data, size_t bytes, bool keep, lu_error *err) {
     if (bytes == 0) bytes = 16, data = NULL;
-    keep = keep && data && g->have[i] && g->buf[i] && g->size[i] >= bytes;
+    keep = keep && data && g->have[i] && g->m.buf[i] && g->size[i] >= bytes;
     g->have[i] = false;
     if (keep) data = NULL;
-    if (!g->buf[i] || g->size[i] < bytes) {
-        lu_gpu_buffer_destroy(g->buf[i]);
-        g->buf[i] = NULL;
+    if (!g->m.buf[i] || g->size[i] < bytes) {
+        lu_gpu_buffer_destroy(g->m.buf[i]);
+        g->m.buf[i] = NULL;
         size_t cap = g->size[i] ? g->size[i] : 4096;
         while (cap < bytes) cap *= 2;
-        lu_result r = lu_gpu_buffer_create(g->ctx, cap, NULL, &g->buf[i], err);
+        lu_result r = lu_gpu_buffer_create(g->m.ctx, cap, NULL, &g->m.buf[i], err);
         if (r != LU_OK) return r;
         g->size[i] = cap;
     }
     if (data) {
-        lu_result r = lu_gpu_buffer_upload(g->buf[i], 0, data, bytes, err);
+        lu_result r = lu_gpu_buffer_upload(g->m.buf[i], 0, data, bytes, err);
         if (r != LU_OK) return r;
     }
     g->have[i] = keep || data;
-    return lu_gpu_buffer_bind(g->buf[i], i, err);
+    return lu_gpu_buffer_bind(g->m.buf[i], i, err);
 }
 
 lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, lu_image *out, lu_error *err) {
@@ -111,28 +105,28 @@ lu_result lu_bssrdf_gpu_render(lu_bssrdf_gpu *g, const lu_bssrdf_gpu_frame *f, l
     for (int b = 0; b < 6; b++) {
         char name[32];
         snprintf(name, sizeof name, "u_buf_off[%d]", b);
-        lu_gpu_uniform_int(g->prog, name, (int)off[b]);
+        lu_gpu_uniform_int(g->m.prog[0], name, (int)off[b]);
     }
-    lu_gpu_uniform_int(g->prog, "u_map_res", f->map_res);
-    lu_gpu_uniform_int(g->prog, "u_width", f->width);
-    lu_gpu_uniform_int(g->prog, "u_height", f->height);
-    lu_gpu_uniform_int(g->prog, "u_tiles_x", f->tiles_x);
-    lu_gpu_uniform_vec3(g->prog, "u_cam_right", f->cam_right.x, f->cam_right.y, f->cam_right.z);
-    lu_gpu_uniform_vec3(g->prog, "u_cam_up", f->cam_up.x, f->cam_up.y, f->cam_up.z);
-    lu_gpu_uniform_vec3(g->prog, "u_cam_forward", f->cam_forward.x, f->cam_forward.y, f->cam_forward.z);
+    lu_gpu_uniform_int(g->m.prog[0], "u_map_res", f->map_res);
+    lu_gpu_uniform_int(g->m.prog[0], "u_width", f->width);
+    lu_gpu_uniform_int(g->m.prog[0], "u_height", f->height);
+    lu_gpu_uniform_int(g->m.prog[0], "u_tiles_x", f->tiles_x);
+    lu_gpu_uniform_vec3(g->m.prog[0], "u_cam_right", f->cam_right.x, f->cam_right.y, f->cam_right.z);
+    lu_gpu_uniform_vec3(g->m.prog[0], "u_cam_up", f->cam_up.x, f->cam_up.y, f->cam_up.z);
+    lu_gpu_uniform_vec3(g->m.prog[0], "u_cam_forward", f->cam_forward.x, f->cam_forward.y, f->cam_forward.z);
     if (r == LU_OK) r = put(g, B_SCATTER, NULL, pixels * 4 * sizeof(float), false, err);
     int longest = 0;
     for (int t = 0; t < ntiles; t++)
         if (f->tile_start[t + 1] - f->tile_start[t] > longest) longest = f->tile_start[t + 1] - f->tile_start[t];
-    lu_gpu_uniform_int(g->prog, "u_chunk_len", LU_BSSRDF_GPU_CHUNK);
+    lu_gpu_uniform_int(g->m.prog[0], "u_chunk_len", LU_BSSRDF_GPU_CHUNK);
     for (int k0 = 0; r == LU_OK; k0 += LU_BSSRDF_GPU_CHUNK) {
         int last = k0 + LU_BSSRDF_GPU_CHUNK >= longest;
-        lu_gpu_uniform_int(g->prog, "u_chunk_begin", k0);
-        lu_gpu_uniform_int(g->prog, "u_finish", last);
-        r = lu_gpu_dispatch(g->prog, (unsigned)f->tiles_x, (unsigned)f->tiles_y, 1, err);
+        lu_gpu_uniform_int(g->m.prog[0], "u_chunk_begin", k0);
+        lu_gpu_uniform_int(g->m.prog[0], "u_finish", last);
+        r = lu_gpu_dispatch(g->m.prog[0], (unsigned)f->tiles_x, (unsigned)f->tiles_y, 1, err);
         if (last) break;
     }
-    if (r == LU_OK) r = lu_gpu_output(g->buf[B_OUT], out->width, out->height, out->rgb, err);
+    if (r == LU_OK) r = lu_gpu_output(g->m.buf[B_OUT], out->width, out->height, out->rgb, err);
     if (r != LU_OK) memset(g->have, 0, sizeof g->have);
     return r;
 }

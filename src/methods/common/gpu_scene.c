@@ -19,6 +19,17 @@ struct lu_gpu_scene {
     lu_majorant maj[LU_SCENE_MAX_MEDIA];     /* of the texture's values (lu_scene_layout.h) */
     lu_gpu_buffer *header, *media, *lights;
     size_t lights_bytes;
+    /* What the media and lights buffers hold, so that a frame uploads only
+     * what changed (a camera move: the header alone). Grid generations are
+     * unique in the process (volume/grid.c), so a replaced emission grid
+     * shows as a new one. */
+    bool media_valid, lights_valid;
+    bool majorants_changed;                  /* since the media buffer's upload */
+    lu_k_medium held_media[LU_SCENE_MAX_MEDIA];
+    uint64_t held_emission[LU_SCENE_MAX_MEDIA];   /* emission grid generation, 0: none */
+    lu_k_light *held_lights;
+    int held_light_count, held_light_cap;
+    int media_uploads, light_uploads;
 };
 
 /* A sparse grid goes to the GPU as a tree only when its dense box would be
@@ -94,11 +105,78 @@ static void put4(float *dst, lu_vec3 v, float w) {
 #define PUT_WI(i, f) p[4 * (i) + 3] = (float)k.f;
 
 /* Packs the records (lu_scene_layout.h) and uploads them. */
-static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec, lu_error *err) {
-    const lu_camera *c = &scene->camera;
-    const lu_k_camera cam = rec->cam;
+static uint64_t emission_generation(const lu_medium *md) {
+    bool grid = md->emission == LU_EMISSION_GRID || md->emission == LU_EMISSION_BLACKBODY;
+    return grid ? md->emission_grid.generation : 0;
+}
+
+/* True when the media buffer holds other records than this frame's. */
+static bool media_stale(const lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec) {
+    if (!gs->media_valid || gs->majorants_changed) return true;
+    for (int m = 0; m < gs->medium_count; m++)
+        if (memcmp(&gs->held_media[m], &rec->media[m], sizeof rec->media[m]) != 0 ||
+            gs->held_emission[m] != emission_generation(&scene->media[m]))
+            return true;
+    return false;
+}
+
+static bool lights_stale(const lu_gpu_scene *gs, const lu_frame_records *rec) {
+    return !gs->lights_valid || gs->held_light_count != rec->light_count ||
+           (rec->light_count && memcmp(gs->held_lights, rec->lights, (size_t)rec->light_count * sizeof *rec->lights) != 0);
+}
+
+/* Remembers what went up (after a successful upload). */
+static lu_result hold_records(lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec, bool media,
+                              bool lights, lu_error *err) {
+    if (media) {
+        for (int m = 0; m < gs->medium_count; m++) {
+            gs->held_media[m] = rec->media[m];
+            gs->held_emission[m] = emission_generation(&scene->media[m]);
+        }
+        gs->majorants_changed = false;
+        gs->media_valid = true;
+    }
+    if (lights) {
+        gs->lights_valid = false;
+        if (rec->light_count > gs->held_light_cap) {
+            lu_k_light *p = lu_realloc(gs->held_lights, (size_t)rec->light_count * sizeof *p);
+            if (!p) return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
+            gs->held_lights = p;
+            gs->held_light_cap = rec->light_count;
+        }
+        if (rec->light_count) memcpy(gs->held_lights, rec->lights, (size_t)rec->light_count * sizeof *rec->lights);
+        gs->held_light_count = rec->light_count;
+        gs->lights_valid = true;
+    }
+    return LU_OK;
+}
+
+static lu_result upload_lights(lu_gpu_scene *gs, const lu_frame_records *rec, lu_error *err) {
     int light_count = rec->light_count, nl = light_count > 0 ? light_count : 1;
+    size_t lbytes = (size_t)nl * LU_SCENE_LIGHT_VEC4 * 4 * sizeof(float);
     float *lights = lu_calloc((size_t)nl * LU_SCENE_LIGHT_VEC4 * 4, sizeof(float));
+    if (!lights) return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
+    for (int l = 0; l < light_count; l++) {
+        float *p = lights + (size_t)l * LU_SCENE_LIGHT_VEC4 * 4;
+        const lu_k_light k = rec->lights[l];
+        LU_SCENE_LIGHT_RECORD(PUT_XYZ, PUT_WF, PUT_WI)
+    }
+    lu_result r = LU_OK;
+    if (gs->lights && gs->lights_bytes < lbytes) {
+        lu_gpu_buffer_destroy(gs->lights);
+        gs->lights = NULL;
+    }
+    if (!gs->lights) {
+        r = lu_gpu_buffer_create(gs->ctx, lbytes, lights, &gs->lights, err);
+        gs->lights_bytes = lbytes;
+    } else {
+        r = lu_gpu_buffer_upload(gs->lights, 0, lights, lbytes, err);
+    }
+    lu_free(lights);
+    return r;
+}
+
+static lu_result upload_media(lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec, lu_error *err) {
     size_t maj_floats = 0;
     for (int m = 0; m < gs->medium_count; m++) maj_floats += (size_t)gs->maj[m].nx * gs->maj[m].ny * gs->maj[m].nz;
     size_t emis_floats = 0;
@@ -110,23 +188,13 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const l
     size_t table_floats = emis_floats ? 3 * LU_SCENE_BLACKBODY_N : 0;
     size_t media_floats = (size_t)LU_SCENE_MAJORANT_DATA * 4 + (maj_floats + emis_floats + table_floats + 3) / 4 * 4;
     if (maj_floats + emis_floats + table_floats >= (size_t)1 << 24) {
-        lu_free(lights);
         return lu_fail(err, LU_ERR_LIMIT,
                        "gpu scene: %zu floats of majorants and emission grids; the GPU buffer addresses at most 2^24 "
                        "(offsets are exact floats)",
                        maj_floats + emis_floats + table_floats);
     }
     float *media = lu_calloc(media_floats, sizeof(float));
-    if (!lights || !media) {
-        lu_free(lights);
-        lu_free(media);
-        return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
-    }
-    for (int l = 0; l < light_count; l++) {
-        float *p = lights + (size_t)l * LU_SCENE_LIGHT_VEC4 * 4;
-        const lu_k_light k = rec->lights[l];
-        LU_SCENE_LIGHT_RECORD(PUT_XYZ, PUT_WF, PUT_WI)
-    }
+    if (!media) return lu_fail(err, LU_ERR_NOMEM, "gpu scene: out of memory");
     size_t at = 0;
     for (int m = 0; m < gs->medium_count; m++) {
         const lu_majorant *mj = &gs->maj[m];
@@ -164,32 +232,31 @@ static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const l
         float *p = media + (size_t)m * LU_SCENE_MEDIUM_VEC4 * 4;
         LU_SCENE_MEDIUM_RECORD(PUT_XYZ, PUT_WF, PUT_WI)
     }
+    size_t bytes = media_floats * sizeof(float);
+    lu_result r = gs->media ? lu_gpu_buffer_upload(gs->media, 0, media, bytes, err)
+                            : lu_gpu_buffer_create(gs->ctx, bytes, media, &gs->media, err);
+    lu_free(media);
+    return r;
+}
+
+static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec, lu_error *err) {
+    const lu_camera *c = &scene->camera;
+    const lu_k_camera cam = rec->cam;
+    int light_count = rec->light_count;
+    bool up_media = media_stale(gs, scene, rec), up_lights = lights_stale(gs, rec);
+    /* Until an upload succeeds, its buffer is not known to hold this frame's records. */
+    if (up_media) gs->media_valid = false;
+    if (up_lights) gs->lights_valid = false;
+    lu_result r = LU_OK;
+    if (up_lights) r = upload_lights(gs, rec, err), gs->light_uploads += r == LU_OK;
+    if (r == LU_OK && up_media) r = upload_media(gs, scene, rec, err), gs->media_uploads += r == LU_OK;
+    if (r == LU_OK) r = hold_records(gs, scene, rec, up_media, up_lights, err);
     float header[LU_SCENE_HEADER_VEC4 * 4];
     put4(header, c->position, (float)c->width);
     put4(header + 4, cam.right, (float)c->height);
     put4(header + 8, cam.up, (float)scene->medium_count);
     put4(header + 12, cam.forward, (float)light_count);
-
-    lu_result r = LU_OK;
-    size_t lbytes = (size_t)nl * LU_SCENE_LIGHT_VEC4 * 4 * sizeof(float);
-    if (gs->lights && gs->lights_bytes < lbytes) {
-        lu_gpu_buffer_destroy(gs->lights);
-        gs->lights = NULL;
-    }
-    if (!gs->lights) {
-        r = lu_gpu_buffer_create(gs->ctx, lbytes, lights, &gs->lights, err);
-        gs->lights_bytes = lbytes;
-    } else {
-        r = lu_gpu_buffer_upload(gs->lights, 0, lights, lbytes, err);
-    }
-    if (r == LU_OK) {
-        size_t bytes = media_floats * sizeof(float);
-        if (!gs->media) r = lu_gpu_buffer_create(gs->ctx, bytes, media, &gs->media, err);
-        else r = lu_gpu_buffer_upload(gs->media, 0, media, bytes, err);
-    }
     if (r == LU_OK) r = lu_gpu_buffer_upload(gs->header, 0, header, sizeof header, err);
-    lu_free(lights);
-    lu_free(media);
     return r;
 }
 
@@ -320,6 +387,7 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_
         if (gs->sparse[m] && g->generation != gs->grid_generation[m]) {
             trees = true;
             lu_majorant_destroy(&gs->maj[m]);
+            gs->majorants_changed = true;
             r = lu_majorant_build(g, LU_SCENE_MAJORANT_BLOCK, &gs->maj[m], err);
             if (r == LU_OK) gs->grid_generation[m] = g->generation;
             continue;
@@ -332,12 +400,18 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_
         /* Same block counts (same dims): the buffer keeps its size. */
         if (r == LU_OK) {
             lu_majorant_destroy(&gs->maj[m]);
+            gs->majorants_changed = true;
             r = lu_majorant_build(g, LU_SCENE_MAJORANT_BLOCK, &gs->maj[m], err);
         }
         if (r == LU_OK) gs->grid_generation[m] = g->generation;
     }
     if (r == LU_OK && trees) r = upload_trees(gs, scene, err);
     return r == LU_OK ? upload_records(gs, scene, rec, err) : r;
+}
+
+void lu_gpu_scene_uploads(const lu_gpu_scene *gs, int *media, int *lights) {
+    *media = gs->media_uploads;
+    *lights = gs->light_uploads;
 }
 
 lu_result lu_gpu_scene_bind(lu_gpu_scene *gs, lu_error *err) {
@@ -357,6 +431,7 @@ void lu_gpu_scene_destroy(lu_gpu_scene *gs) {
     }
     lu_gpu_buffer_destroy(gs->header);
     lu_gpu_buffer_destroy(gs->media);
+    lu_free(gs->held_lights);
     lu_gpu_buffer_destroy(gs->lights);
     lu_free(gs);
 }

@@ -27,7 +27,7 @@
  * C side:
  *   lu_gpu_scene *gs;
  *   lu_gpu_scene_create(ctx, scene, &gs, &err);    // uploads everything
- *   lu_gpu_scene_update(gs, scene, frame->rec, &err);  // camera/lights/media moved: re-uploads records, edited grids
+ *   lu_gpu_scene_update(gs, scene, frame->rec, &err);  // each frame: uploads what changed
  *   lu_gpu_scene_bind(gs, &err);                   // before each dispatch (other code may rebind)
  *   lu_gpu_scene_destroy(gs);                      // before the context
  * CPU drivers of the same kernels build the same records with
@@ -50,9 +50,10 @@ typedef struct lu_gpu_scene lu_gpu_scene;
 /* Fails with LU_ERR_LIMIT for more than LU_SCENE_MAX_MEDIA media, with the
  * backend's error when no GL call can be made. */
 lu_result lu_gpu_scene_create(lu_gpu_context *ctx, const lu_scene *scene, lu_gpu_scene **out, lu_error *err);
-/* Re-uploads header, medium records and lights (the frame's records of
- * `scene`), and the values
- * of every grid whose generation changed (same media and grid sizes:
+/* Uploads the frame's records of `scene`: the header (camera) always; the
+ * lights and the media buffer (medium records, majorants, emission grids)
+ * only when they differ from what the GPU holds; and the values of every
+ * grid whose generation changed (same media and grid sizes:
  * LU_ERR_INVALID_ARG if the medium count or a grid's size differs). */
 lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec, lu_error *err);
 /* The defines every program reading this scene is compiled with (prefix
@@ -62,6 +63,8 @@ lu_result lu_gpu_scene_update(lu_gpu_scene *gs, const lu_scene *scene, const lu_
  * as a texture of its dense expansion instead. */
 const char *lu_gpu_scene_defines(const lu_scene *scene);
 void lu_gpu_scene_set_dense_limit(uint64_t bytes);
+/* How many times the media and the lights buffers were uploaded (tests). */
+void lu_gpu_scene_uploads(const lu_gpu_scene *gs, int *media, int *lights);
 /* Binds the three buffers and the grid textures at their fixed points. */
 lu_result lu_gpu_scene_bind(lu_gpu_scene *gs, lu_error *err);
 void lu_gpu_scene_destroy(lu_gpu_scene *gs);

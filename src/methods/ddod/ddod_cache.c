@@ -2,6 +2,7 @@
  * input the samples depend on, a checked file format, and prepare_set, which
  * loads a matching file or computes and writes one. */
 #include "methods/ddod/ddod.h"
+#include "core/fnv.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -11,40 +12,30 @@
 
 #define DDOD_CACHE_VERSION 5
 
-typedef struct fnv {
-    uint64_t h;
-} fnv;
-static void fnv_bytes(fnv *f, const void *data, size_t n) {
-    const unsigned char *p = data;
-    for (size_t i = 0; i < n; i++) {
-        f->h ^= p[i];
-        f->h *= 0x100000001b3ull;
-    }
-}
-static void fnv_mesh(fnv *f, const lu_mesh *m) {
-    fnv_bytes(f, &m->vertex_count, sizeof m->vertex_count);
-    fnv_bytes(f, &m->triangle_count, sizeof m->triangle_count);
-    fnv_bytes(f, m->positions, (size_t)m->vertex_count * sizeof *m->positions);
-    fnv_bytes(f, m->indices, (size_t)m->triangle_count * 3 * sizeof *m->indices);
+static void fnv_mesh(lu_fnv *f, const lu_mesh *m) {
+    lu_fnv_bytes(f, &m->vertex_count, sizeof m->vertex_count);
+    lu_fnv_bytes(f, &m->triangle_count, sizeof m->triangle_count);
+    lu_fnv_bytes(f, m->positions, (size_t)m->vertex_count * sizeof *m->positions);
+    lu_fnv_bytes(f, m->indices, (size_t)m->triangle_count * 3 * sizeof *m->indices);
 }
 
 uint64_t lu_ddod_key(const lu_scene *scene, const lu_ddod_params *p) {
-    fnv f = {0xcbf29ce484222325ull};
+    lu_fnv f = LU_FNV_INIT;
     int v = DDOD_CACHE_VERSION;
-    fnv_bytes(&f, &v, sizeof v);
-    fnv_bytes(&f, p, sizeof *p);
+    lu_fnv_bytes(&f, &v, sizeof v);
+    lu_fnv_bytes(&f, p, sizeof *p);
     for (int i = 0; i < scene->medium_count; i++) {
         const lu_medium *m = &scene->media[i];
-        fnv_bytes(&f, &m->kind, sizeof m->kind);
-        fnv_bytes(&f, &m->constant, sizeof m->constant);
-        fnv_bytes(&f, &m->sigma_a, sizeof m->sigma_a);
-        fnv_bytes(&f, &m->sigma_s, sizeof m->sigma_s);
-        fnv_bytes(&f, &m->eta, sizeof m->eta);
-        fnv_bytes(&f, &m->world_to_index, sizeof m->world_to_index);
+        lu_fnv_bytes(&f, &m->kind, sizeof m->kind);
+        lu_fnv_bytes(&f, &m->constant, sizeof m->constant);
+        lu_fnv_bytes(&f, &m->sigma_a, sizeof m->sigma_a);
+        lu_fnv_bytes(&f, &m->sigma_s, sizeof m->sigma_s);
+        lu_fnv_bytes(&f, &m->eta, sizeof m->eta);
+        lu_fnv_bytes(&f, &m->world_to_index, sizeof m->world_to_index);
         if (m->kind == LU_DENSITY_GRID) {
-            fnv_bytes(&f, &m->grid.nx, 3 * sizeof(int));
-            if (m->grid.data) fnv_bytes(&f, m->grid.data, (size_t)m->grid.nx * m->grid.ny * m->grid.nz * sizeof(float));
-            else fnv_bytes(&f, m->grid.tree, (size_t)m->grid.tree_bytes), fnv_bytes(&f, m->grid.tree_lo, sizeof m->grid.tree_lo);
+            lu_fnv_bytes(&f, &m->grid.nx, 3 * sizeof(int));
+            if (m->grid.data) lu_fnv_bytes(&f, m->grid.data, (size_t)m->grid.nx * m->grid.ny * m->grid.nz * sizeof(float));
+            else lu_fnv_bytes(&f, m->grid.tree, (size_t)m->grid.tree_bytes), lu_fnv_bytes(&f, m->grid.tree_lo, sizeof m->grid.tree_lo);
         }
         if (m->has_boundary) fnv_mesh(&f, &m->boundary);
     }
@@ -64,9 +55,9 @@ typedef struct cache_header {
 } cache_header;
 
 static uint64_t payload_checksum(const lu_ddod_set *s) {
-    fnv f = {0xcbf29ce484222325ull};
-    fnv_bytes(&f, s->samples, (size_t)s->count * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float));
-    fnv_bytes(&f, s->sh, (size_t)s->count * s->stride * sizeof(float));
+    lu_fnv f = LU_FNV_INIT;
+    lu_fnv_bytes(&f, s->samples, (size_t)s->count * LU_K_DDOD_SAMPLE_FLOATS * sizeof(float));
+    lu_fnv_bytes(&f, s->sh, (size_t)s->count * s->stride * sizeof(float));
     return f.h;
 }
 
