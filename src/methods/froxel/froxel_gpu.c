@@ -8,17 +8,13 @@
 #include <string.h>
 
 #include "backends/gpu.h"
-#include "methods/common/gpu_scene.h"
+#include "methods/common/gpu_method.h"
 #include "methods/froxel/froxel.h"
 
 enum { B_HITS, B_SPANS, B_VIEWS, B_TABLE, B_SHADOW, B_OUT, B_SURFVIS, B_CSPANS, B_LIT, B_HIST, B_INT, B_COUNT };
 
 struct lu_froxel_gpu {
-    lu_gpu_context *ctx;
-    lu_gpu_program *prog;
-    lu_gpu_scene *scene;
-    lu_gpu_buffer *buf[B_COUNT];
-    lu_gpu_upload up[B_COUNT];
+    lu_gpu_method m;                 /* slots B_* except the lit volumes */
     lu_gpu_buffer *lit[2];           /* lit volumes: lit[cur] is this frame's */
     int cur;
 };
@@ -27,11 +23,10 @@ lu_result lu_froxel_gpu_create(const lu_scene *scene, lu_froxel_gpu **out, lu_er
     *out = NULL;
     lu_froxel_gpu *g = lu_calloc(1, sizeof *g);
     if (!g) return lu_fail(err, LU_ERR_NOMEM, "froxel: out of memory");
-    lu_result r = lu_gpu_context_create(&g->ctx, LU_GPU_AUTO, err);
-    if (r == LU_OK) r = lu_gpu_program_create(g->ctx, "methods/froxel/froxel.comp", lu_gpu_scene_defines(scene), &g->prog, err);
-    if (r == LU_OK) r = lu_gpu_scene_create(g->ctx, scene, &g->scene, err);
+    static const lu_gpu_method_program programs[] = {{"methods/froxel/froxel.comp", NULL}, {NULL, NULL}};
+    lu_result r = lu_gpu_method_init(&g->m, scene, programs, err);
     if (r != LU_OK) {
-        lu_froxel_gpu_destroy(g);
+        lu_free(g);
         return r;
     }
     *out = g;
@@ -40,21 +35,17 @@ lu_result lu_froxel_gpu_create(const lu_scene *scene, lu_froxel_gpu **out, lu_er
 
 void lu_froxel_gpu_destroy(lu_froxel_gpu *g) {
     if (!g) return;
-    for (int i = 0; i < B_COUNT; i++) lu_gpu_buffer_destroy(g->buf[i]);
     for (int i = 0; i < 2; i++) lu_gpu_buffer_destroy(g->lit[i]);
-    lu_gpu_scene_destroy(g->scene);
-    lu_gpu_program_destroy(g->prog);
-    lu_gpu_context_destroy(g->ctx);
+    lu_gpu_method_release(&g->m);
     lu_free(g);
 }
 
 static lu_result put(lu_froxel_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {
-    return lu_gpu_buffer_put(g->ctx, &g->buf[i], data, bytes, LU_SCENE_BINDING_FREE + i, err);
+    return lu_gpu_method_put(&g->m, i, data, bytes, err);
 }
 
 static lu_result put_kept(lu_froxel_gpu *g, int i, const void *data, size_t bytes, unsigned version, lu_error *err) {
-    return lu_gpu_buffer_put_versioned(g->ctx, &g->buf[i], &g->up[i], data, bytes, version, LU_SCENE_BINDING_FREE + i,
-                                       err);
+    return lu_gpu_method_put_kept(&g->m, i, data, bytes, version, err);
 }
 
 /* The uniform struct `name` (lu_k_fx_grid) set from G. */
@@ -86,8 +77,8 @@ lu_result lu_froxel_gpu_render(lu_froxel_gpu *g, const lu_scene *scene, const lu
     size_t pixels = (size_t)f->width * f->height;
     size_t texels = (size_t)f->map_res * f->map_res;
     size_t columns = (size_t)G->nx * G->ny, cells = columns * (size_t)G->nz;
-    lu_result r = lu_gpu_scene_update(g->scene, scene, rec, err);
-    if (r == LU_OK) r = lu_gpu_scene_bind(g->scene, err);
+    lu_result r = lu_gpu_scene_update(g->m.scene, scene, rec, err);
+    if (r == LU_OK) r = lu_gpu_scene_bind(g->m.scene, err);
     if (r == LU_OK) r = put_kept(g, B_HITS, f->hits, pixels * 16 * sizeof(float), f->hits_version, err);
     if (r == LU_OK)
         r = put_kept(g, B_SPANS, f->spans, pixels * (size_t)f->medium_count * 2 * sizeof(float), f->hits_version, err);
@@ -106,14 +97,14 @@ lu_result lu_froxel_gpu_render(lu_froxel_gpu *g, const lu_scene *scene, const lu
                                   fx->spans_version, err);
     if (r == LU_OK && relight) g->cur ^= 1;
     if (r == LU_OK)
-        r = lu_gpu_buffer_put(g->ctx, &g->lit[g->cur], NULL, cells * LU_K_FX_CELL_FLOATS * sizeof(float),
-                              LU_SCENE_BINDING_FREE + B_LIT, err);
+        r = lu_gpu_buffer_put(g->m.ctx, &g->lit[g->cur], NULL, cells * LU_K_FX_CELL_FLOATS * sizeof(float),
+                              g->m.binding0 + B_LIT, err);
     if (r == LU_OK)
-        r = lu_gpu_buffer_put(g->ctx, &g->lit[g->cur ^ 1], NULL, cells * LU_K_FX_CELL_FLOATS * sizeof(float),
-                              LU_SCENE_BINDING_FREE + B_HIST, err);
+        r = lu_gpu_buffer_put(g->m.ctx, &g->lit[g->cur ^ 1], NULL, cells * LU_K_FX_CELL_FLOATS * sizeof(float),
+                              g->m.binding0 + B_HIST, err);
     if (r == LU_OK) r = put(g, B_INT, NULL, (cells + columns) * LU_K_FX_CELL_FLOATS * sizeof(float), err);
     if (r != LU_OK) return r;
-    lu_gpu_program *p = g->prog;
+    lu_gpu_program *p = g->m.prog[0];
     lu_gpu_uniform_int(p, "u_map_res", f->map_res);
     lu_gpu_uniform_float(p, "u_eps", f->eps);
     lu_gpu_uniform_float(p, "u_t_cut", f->t_cut);
@@ -139,6 +130,6 @@ lu_result lu_froxel_gpu_render(lu_froxel_gpu *g, const lu_scene *scene, const lu
         lu_gpu_uniform_int(p, "u_pass", 2);
         r = lu_gpu_dispatch(p, (unsigned)(f->width + 7) / 8, (unsigned)(f->height + 7) / 8, 1, err);
     }
-    if (r == LU_OK) r = lu_gpu_output(g->buf[B_OUT], out->width, out->height, out->rgb, err);
+    if (r == LU_OK) r = lu_gpu_output(g->m.buf[B_OUT], out->width, out->height, out->rgb, err);
     return r;
 }
