@@ -36,6 +36,7 @@ static const struct {
     {"pervoxel.steps", 96},   {"pervoxel.shadow_res", 256}, {"pervoxel.grid", 32},
     {"ddod.res", 16},         {"ddod.dirs", 16},          {"ddod.samples", 1000},
     {"ddod.bands", 3},        {"ddod.fit", 2},            {"ddod.cache", 0},
+    {"froxel.nx", 20},        {"froxel.ny", 15},          {"froxel.nz", 32},   {"froxel.shadow_res", 256},
 };
 
 static int compare_names(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }

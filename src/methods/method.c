@@ -20,6 +20,7 @@ static const lu_method *const k_methods[] = {
     &lu_method_rbf,
     &lu_method_pervoxel,
     &lu_method_ddod,
+    &lu_method_froxel,
 };
 
 const lu_method *const *lu_methods(int *count) {

@@ -30,6 +30,7 @@ extern const lu_method lu_method_gradient;
 extern const lu_method lu_method_rbf;
 extern const lu_method lu_method_pervoxel;
 extern const lu_method lu_method_ddod;
+extern const lu_method lu_method_froxel;
 
 /* Offset for secondary rays leaving a surface: a fixed fraction of the
  * scene's size, so it neither self-intersects nor skips thin features at any
@@ -98,7 +99,7 @@ static inline lu_result lu_refuse_emission(const lu_scene *scene, const char *me
         if (scene->media[m].emission != LU_EMISSION_NONE)
             return lu_fail(err, LU_ERR_UNSUPPORTED,
                            "%s: medium %d of %s is emissive, and %s does not march the view ray to add emission "
-                           "(use reference, pathtrace or a march method: raymarch, afm, gradient, rbf, pervoxel)",
+                           "(use reference, pathtrace, a march method: raymarch, afm, gradient, rbf, pervoxel, or froxel)",
                            method, m, scene->path[0] ? scene->path : "the scene", method);
     return LU_OK;
 }
