@@ -59,7 +59,14 @@ static void test_all_kernels_compile_as_glsl(void) {
                                 "float lu_k_afm_cam_normal(LU_CTX_PARAM, int pixel, int m, int k) { return 0.0; }\n"
                                 "float lu_k_afm_surface(LU_CTX_PARAM, int m, int k) { return 1.0; }\n"
                                 "int lu_k_afm_param(LU_CTX_PARAM, int i) { return 4; }\n"
-                                "float lu_k_afm_surface_vis(LU_CTX_PARAM, int pixel, int l) { return 1.0; }\n");
+                                "float lu_k_afm_surface_vis(LU_CTX_PARAM, int pixel, int l) { return 1.0; }\n"
+                                "float lu_k_fx_span(LU_CTX_PARAM, int column, int m, int end) { return float(end); }\n"
+                                "vec3 lu_k_fx_hist(LU_CTX_PARAM, int cell, int part) { return vec3(0.0); }\n"
+                                "float lu_k_fx_hist_valid(LU_CTX_PARAM, int cell) { return 0.0; }\n"
+                                "float lu_k_fx_reach(LU_CTX_PARAM, int column) { return 1.0; }\n"
+                                "vec3 lu_k_fx_lit(LU_CTX_PARAM, int cell, int part) { return vec3(0.0); }\n"
+                                "vec3 lu_k_fx_int(LU_CTX_PARAM, int node, int part) { return vec3(0.0); }\n"
+                                "void lu_k_fx_int_store(LU_CTX_PARAM, int node, vec3 L, vec3 tau) { o.v[node] = L.x + tau.x; }\n");
     /* Every embedded kernel header (lu_*.h in src/kernels and the method rooms). */
     int count = 0;
     for (int i = 0; i < lu_gpu_embedded_source_count; i++) {

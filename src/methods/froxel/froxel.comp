@@ -73,6 +73,7 @@ void main() {
     P.jitter = 0;
     P.map_res = u_map_res;
     P.t_cut = u_t_cut;
+    P.ms = lu_rm_ms_uniform();
     lu_k_fx_grid G = u_g;
     if (u_pass == 2) {
         if (x >= G.width || y >= G.height) return;

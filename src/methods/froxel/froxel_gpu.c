@@ -108,6 +108,7 @@ lu_result lu_froxel_gpu_render(lu_froxel_gpu *g, const lu_scene *scene, const lu
     lu_gpu_uniform_int(p, "u_map_res", f->map_res);
     lu_gpu_uniform_float(p, "u_eps", f->eps);
     lu_gpu_uniform_float(p, "u_t_cut", f->t_cut);
+    lu_gpu_uniform_vec4(p, "u_ms", (float)f->ms.octaves, f->ms.a, f->ms.b, f->ms.c);
     lu_gpu_uniform_vec3(p, "u_background", f->background.x, f->background.y, f->background.z);
     set_grid(p, "u_g", G);
     set_grid(p, "u_p", &fx->prev);

@@ -155,7 +155,7 @@ LU_FN float lu_k_fx_light(LU_CTX_PARAM, lu_k_rm_params P, lu_k_fx_grid G, int i,
         if (md.emission != 0 && dm > 0.0f) Se = lu_v3_madd(Se, lu_v3_mul(md.sigma_a, lu_k_emission(LU_CTX, m, pm)), dm);
     }
     vec3 S = Se;
-    if (scatters) S = lu_v3_add(S, LU_K_RM_INSCATTER(LU_CTX, P.map_res, x, d, ta - t, tb - t, dens, nm));
+    if (scatters) S = lu_v3_add(S, LU_K_RM_INSCATTER(LU_CTX, P, x, d, ta - t, tb - t, dens, nm));
     if (history != 0) {
         vec3 g = lu_v3s(0.0f), Sh = lu_v3s(0.0f), sh = lu_v3s(0.0f);
         if (lu_k_fx_locate(Gp, x, LU_REF(g)) && lu_k_fx_hist_at(LU_CTX, Gp, g.x, g.y, g.z, LU_REF(Sh), LU_REF(sh)) > 0.0f) {
