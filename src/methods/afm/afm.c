@@ -315,10 +315,8 @@ typedef struct afm_state {
     unsigned surfaces_version;      /* changes whenever the media (their boundary surfaces) changed */
     float eps;
     lu_view_march_frame frame;
-    const lu_scene *scene;
     struct lu_k_ctx kctx;
     lu_k_camera cam;
-    lu_image *out;
     lu_afm_gpu *gpu;
 } afm_state;
 
@@ -400,22 +398,9 @@ static lu_result afm_prepare(const lu_scene *scene, const double *params, lu_bac
     return LU_OK;
 }
 
-static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
-    (void)thread;
-    afm_state *st = ctx;
-    const lu_camera *c = &st->scene->camera;
-    lu_k_rm_params R = lu_view_march_frame_params(&st->frame);
-    for (int64_t y = begin; y < end; y++) {
-        for (int x = 0; x < c->width; x++) {
-            int px = (int)(y * c->width + x);
-            lu_vec3 d = lu_k_camera_dir(st->cam, (float)x + 0.5f, (float)y + 0.5f);
-            lu_vec3 L = lu_k_afm_radiance(&st->kctx, lu_k_afm_params_get(&st->kctx), R, px, c->position, d, lu_k_rm_jitter(R.jitter, px));
-            float *o = lu_image_px(st->out, x, (int)y);
-            o[0] = L.x;
-            o[1] = L.y;
-            o[2] = L.z;
-        }
-    }
+static lu_vec3 afm_pixel(void *state, lu_k_rm_params P, int pixel, lu_vec3 o, lu_vec3 d, float u) {
+    afm_state *st = state;
+    return lu_k_afm_radiance(&st->kctx, lu_k_afm_params_get(&st->kctx), P, pixel, o, d, u);
 }
 
 static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
@@ -423,8 +408,6 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     afm_state *st = state;
     if (scene->medium_count != st->mr.medium_count)
         return lu_fail(err, LU_ERR_INVALID_ARG, "afm: the scene's media changed since prepare");
-    st->scene = scene;
-    st->out = out;
     st->cam = frame->rec->cam;
     if (frame->changed & LU_CHANGE_MEDIA) st->surfaces_version++;
     for (int m = 0; m < scene->medium_count; m++) {
@@ -437,10 +420,7 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     }
     const lu_k_light *kl = frame->rec->lights;
     int nl = frame->rec->light_count;
-    lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
-    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, nl, err);
-    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, nl, st->eps, err);
-    if (r == LU_OK) r = lu_media_rays_majorants(&st->mr, frame, NULL, err);
+    lu_result r = lu_media_rays_view_march(&st->mr, frame, st->cam, kl, nl, st->eps, err);
     if (r == LU_OK) r = lu_afm_map_views(&st->map, frame, &st->mr, nl, err);
     if (r != LU_OK) return r;
 
@@ -469,7 +449,7 @@ static lu_result afm_render(void *state, const lu_frame *frame, lu_image *out, l
     st->kctx.cam_normals = st->mr.normals;
     st->kctx.surfaces = st->surfaces;
     st->kctx.surface_vis = st->mr.surface_vis;
-    lu_frame_for_rows(frame, 1, render_rows, st, NULL);
+    lu_view_march_render_rows(frame, f, st->cam, afm_pixel, st, out);
     return LU_OK;
 }
 

@@ -346,3 +346,12 @@ lu_result lu_media_rays_boundary_maps(lu_media_rays *mr, const lu_frame *f, cons
     lu_frame_rebuilt(f, "media_rays.boundary_maps");
     return LU_OK;
 }
+
+lu_result lu_media_rays_view_march(lu_media_rays *mr, const lu_frame *f, lu_k_camera cam, const lu_k_light *kl, int nl,
+                                   float eps, lu_error *err) {
+    lu_result r = lu_media_rays_camera(mr, f, cam, err);
+    if (r == LU_OK) r = lu_media_rays_maps(mr, f, kl, nl, err);
+    if (r == LU_OK) r = lu_media_rays_surface_vis(mr, f, cam, kl, nl, eps, err);
+    if (r == LU_OK) r = lu_media_rays_majorants(mr, f, NULL, err);
+    return r;
+}

@@ -110,6 +110,12 @@ lu_result lu_media_rays_surface_vis(lu_media_rays *mr, const lu_frame *f, lu_k_c
  * grid), the scene's grid otherwise. Rebuilt when the frame's media changed. */
 lu_result lu_media_rays_majorants(lu_media_rays *mr, const lu_frame *f, const lu_grid *dens, lu_error *err);
 
+/* A view-march frame's products in order, each kept while its inputs are:
+ * camera rays, shadow maps, exact surface visibility and the majorants of
+ * the scene's grids (raymarch, afm and froxel march the scene's own grids). */
+lu_result lu_media_rays_view_march(lu_media_rays *mr, const lu_frame *f, lu_k_camera cam, const lu_k_light *kl, int nl,
+                                   float eps, lu_error *err);
+
 /* The first span of each medium along o + t d, t in [0, t_end]: sp[2m],
  * sp[2m+1] (empty: sp[2m+1] <= sp[2m]; unbounded media: [0, LU_K_FAR]).
  * normals (NULL, or medium_count * LU_MR_NORMAL_FLOATS) gets the boundary's

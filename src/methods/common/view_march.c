@@ -65,3 +65,35 @@ lu_k_ms lu_view_march_ms(const double *p) {
     if ((int)p[0] == 0) return lu_k_ms_make(1, 1.0f, 1.0f, 1.0f);
     return lu_k_ms_make((int)p[1], (float)p[2], (float)p[3], (float)p[4]);
 }
+
+typedef struct rows_job {
+    lu_k_rm_params P;
+    lu_k_camera cam;
+    lu_vec3 origin;
+    lu_view_march_pixel_fn fn;
+    void *state;
+    lu_image *out;
+} rows_job;
+
+static void march_rows(void *ctx, int64_t begin, int64_t end, int thread) {
+    (void)thread;
+    const rows_job *j = ctx;
+    int w = j->out->width;
+    for (int64_t y = begin; y < end; y++) {
+        for (int x = 0; x < w; x++) {
+            int px = (int)(y * w + x);
+            lu_vec3 d = lu_k_camera_dir(j->cam, (float)x + 0.5f, (float)y + 0.5f);
+            lu_vec3 L = j->fn(j->state, j->P, px, j->origin, d, lu_k_rm_jitter(j->P.jitter, px));
+            float *o = lu_image_px(j->out, x, (int)y);
+            o[0] = L.x;
+            o[1] = L.y;
+            o[2] = L.z;
+        }
+    }
+}
+
+void lu_view_march_render_rows(const lu_frame *frame, const lu_view_march_frame *f, lu_k_camera cam,
+                               lu_view_march_pixel_fn fn, void *state, lu_image *out) {
+    rows_job j = {lu_view_march_frame_params(f), cam, frame->scene->camera.position, fn, state, out};
+    lu_frame_for_rows(frame, 1, march_rows, &j, NULL);
+}

@@ -78,6 +78,17 @@ void lu_view_march_frame_fill(lu_view_march_frame *f, const lu_scene *scene, con
  * one octave (single scattering) when ms = off. */
 lu_k_ms lu_view_march_ms(const double *params_first);
 
+/* A view-march method's CPU pixel: the radiance along the camera ray o + t d
+ * of `pixel` (u: where in each step the sample sits), from its kernel. */
+struct lu_k_rm_params;   /* lu_view_march.h, the kernel */
+typedef lu_vec3 (*lu_view_march_pixel_fn)(void *state, struct lu_k_rm_params P, int pixel, lu_vec3 o, lu_vec3 d,
+                                          float u);
+/* The CPU pixel stage of a view-march frame f: every pixel's camera ray
+ * (cam, from the camera's position) through fn into out, over the frame's
+ * rows (lu_frame_for_rows). */
+void lu_view_march_render_rows(const lu_frame *frame, const lu_view_march_frame *f, lu_k_camera cam,
+                               lu_view_march_pixel_fn fn, void *state, lu_image *out);
+
 /* Upper bound of the loop iterations one shadow ray through medium k takes
  * in the view march (lu_k_optical_depth_blocks), for GPU segment sizes. */
 long lu_view_march_shadow_iterations(const lu_k_medium *k);

@@ -275,10 +275,7 @@ static lu_result fx_render(void *state, const lu_frame *frame, lu_image *out, lu
     const lu_k_light *kl = frame->rec->lights;
     int nl = frame->rec->light_count;
     lu_k_camera cam = frame->rec->cam;
-    lu_result r = lu_media_rays_camera(&st->mr, frame, cam, err);
-    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, nl, err);
-    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, cam, kl, nl, st->eps, err);
-    if (r == LU_OK) r = lu_media_rays_majorants(&st->mr, frame, NULL, err);
+    lu_result r = lu_media_rays_view_march(&st->mr, frame, cam, kl, nl, st->eps, err);
     if (r != LU_OK) return r;
     lu_view_march_frame *f = &st->frame;
     lu_view_march_frame_fill(f, scene, &st->mr, 1, st->eps, 0, nl, st->t_cut);

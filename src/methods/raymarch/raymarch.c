@@ -57,10 +57,8 @@ typedef struct rm_state {
     lu_media_rays mr;          /* camera hits/spans, light views, shadow maps */
     float eps;
     lu_view_march_frame frame;
-    const lu_scene *scene;
     struct lu_k_ctx kctx;
     lu_k_camera cam;
-    lu_image *out;
     lu_raymarch_gpu *gpu;
 } rm_state;
 
@@ -98,22 +96,8 @@ static lu_result rm_prepare(const lu_scene *scene, const double *params, lu_back
     return LU_OK;
 }
 
-static void render_rows(void *ctx, int64_t begin, int64_t end, int thread) {
-    (void)thread;
-    rm_state *st = ctx;
-    const lu_camera *c = &st->scene->camera;
-    lu_k_rm_params P = lu_view_march_frame_params(&st->frame);
-    for (int64_t y = begin; y < end; y++) {
-        for (int x = 0; x < c->width; x++) {
-            int px = (int)(y * c->width + x);
-            lu_vec3 d = lu_k_camera_dir(st->cam, (float)x + 0.5f, (float)y + 0.5f);
-            lu_vec3 L = lu_k_rm_radiance(&st->kctx, P, px, c->position, d, lu_k_rm_jitter(P.jitter, px));
-            float *o = lu_image_px(st->out, x, (int)y);
-            o[0] = L.x;
-            o[1] = L.y;
-            o[2] = L.z;
-        }
-    }
+static lu_vec3 rm_pixel(void *state, lu_k_rm_params P, int pixel, lu_vec3 o, lu_vec3 d, float u) {
+    return lu_k_rm_radiance(&((rm_state *)state)->kctx, P, pixel, o, d, u);
 }
 
 static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu_error *err) {
@@ -121,15 +105,10 @@ static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu
     rm_state *st = state;
     if (scene->medium_count != st->mr.medium_count)
         return lu_fail(err, LU_ERR_INVALID_ARG, "raymarch: the scene's media changed since prepare");
-    st->scene = scene;
-    st->out = out;
     st->cam = frame->rec->cam;
     const lu_k_light *kl = frame->rec->lights;
     int nl = frame->rec->light_count;
-    lu_result r = lu_media_rays_camera(&st->mr, frame, st->cam, err);
-    if (r == LU_OK) r = lu_media_rays_maps(&st->mr, frame, kl, nl, err);
-    if (r == LU_OK) r = lu_media_rays_surface_vis(&st->mr, frame, st->cam, kl, nl, st->eps, err);
-    if (r == LU_OK) r = lu_media_rays_majorants(&st->mr, frame, NULL, err);
+    lu_result r = lu_media_rays_view_march(&st->mr, frame, st->cam, kl, nl, st->eps, err);
     if (r != LU_OK) return r;
 
     lu_view_march_frame *f = &st->frame;
@@ -137,7 +116,7 @@ static lu_result rm_render(void *state, const lu_frame *frame, lu_image *out, lu
     f->ms = st->ms;
     if (st->backend == LU_BACKEND_GPU) return lu_raymarch_gpu_render(st->gpu, scene, frame->rec, f, out, err);
     st->kctx = (struct lu_k_ctx){LU_K_CTX_SCENE(scene, frame->rec), f, st->mr.views};
-    lu_frame_for_rows(frame, 1, render_rows, st, NULL);
+    lu_view_march_render_rows(frame, f, st->cam, rm_pixel, st, out);
     return LU_OK;
 }
 
