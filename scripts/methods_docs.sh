@@ -16,9 +16,13 @@ scenes=("$@")
 mkdir -p docs/methods docs/images/methods
 for s in "${scenes[@]}"; do
   read -r w h < <(python3 -c "import json;c=json.load(open('scenes/$s.json'))['camera'];print(c['width']//2,c['height']//2)")
+  # ddod renders media inside a closed boundary mesh only
+  methods=reference,raymarch,afm,gradient,froxel,pathtrace
+  python3 -c "import json,sys;sys.exit(not all('boundary' in m for m in json.load(open('scenes/$s.json'))['media']))" &&
+    methods=$methods,ddod
   echo "== $s ${w}x${h}"
-  "$build/lucent" bench "scenes/$s.json" --size "${w}x${h}" --truth pathtrace --frames 2 --warmup 1 \
-    --methods reference,raymarch,afm,gradient,ddod,froxel,pathtrace \
+  "$build/lucent" bench "scenes/$s.json" --size "${w}x${h}" --truth pathtrace --frames 2 --warmup 0 \
+    --methods "$methods" \
     --sweep raymarch.ms=off,octaves --sweep afm.ms=off,octaves --sweep gradient.ms=off,octaves \
     --sweep pathtrace.spp=4,16 --set pathtrace.jitter=0 \
     --csv "docs/methods/$s.csv" --plot "docs/images/methods/$s.png"
