@@ -93,6 +93,16 @@ static inline void lu_test_settings(lu_kvlist *kv, const char *settings) {
     for (char *tok = strtok(buf, " "); tok; tok = strtok(NULL, " ")) CHECK_OK(lu_kv_parse_assignment(kv, tok, &err), &err);
 }
 
+/* The view march's multiple-scattering settings of `method` into kv:
+ * ms=octaves with N octaves and scales a, b, c (n = 0: nothing, ms=off). */
+static inline void lu_test_ms_settings(lu_kvlist *kv, const char *method, int n, double a, double b, double c) {
+    if (n <= 0) return;
+    char buf[512];
+    snprintf(buf, sizeof buf, "%s.ms=octaves %s.ms_octaves=%d %s.ms_a=%.17g %s.ms_b=%.17g %s.ms_c=%.17g", method, method,
+             n, method, a, method, b, method, c);
+    lu_test_settings(kv, buf);
+}
+
 /* Renders a scene given as JSON text with `method` on the CPU ("method.key=value"
  * settings, space-separated); false (and a counted failure) if anything fails. */
 static inline bool lu_test_render_json(const char *json, const char *method, const char *settings, lu_image *img) {

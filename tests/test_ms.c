@@ -33,21 +33,7 @@ struct lu_k_ctx {
 
 static inline float lu_k_density(const struct lu_k_ctx *c, int m, lu_vec3 p) { return c->km.density_scale; }
 static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int by, int bz) { return c->km.density_scale; }
-static inline int lu_k_medium_count(const struct lu_k_ctx *c) { return 1; }
-static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { return c->km; }
-static inline lu_vec3 lu_k_emission(const struct lu_k_ctx *c, int m, lu_vec3 p) { return lu_v3s(0.0f); }
-static inline int lu_k_light_count(const struct lu_k_ctx *c) { return 1; }
-static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) { return c->kl; }
-static inline float lu_k_shadow_depth(const struct lu_k_ctx *c, int map, int i, int j) { return 1e30f; }
-static inline int lu_k_rm_view_first(const struct lu_k_ctx *c, int l) { return 0; }
-static inline int lu_k_rm_view_count(const struct lu_k_ctx *c, int l) { return 0; }
-static inline lu_k_lightview lu_k_rm_view(const struct lu_k_ctx *c, int v) {
-    lu_k_lightview w;
-    memset(&w, 0, sizeof w);
-    return w;
-}
-static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k) { return k == 3 ? -1.0f : 0.0f; }
-static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) { return end ? 1e30f : 0.0f; }
+#include "lu_test_march.h"
 
 #include "methods/common/lu_view_march.h"
 
@@ -114,17 +100,7 @@ static const char *k_box_scene =
 static bool render_ms(const lu_scene *s, const char *method, int n, double a, double b, double c, lu_image *img) {
     lu_kvlist set = {0};
     lu_error err = {0};
-    char key[64];
-    if (n > 0) {
-        double v[4] = {n, a, b, c};
-        const char *names[4] = {"ms_octaves", "ms_a", "ms_b", "ms_c"};
-        snprintf(key, sizeof key, "%s.ms", method);
-        lu_kv_set_string(&set, key, "octaves", &err);
-        for (int i = 0; i < 4; i++) {
-            snprintf(key, sizeof key, "%s.%s", method, names[i]);
-            lu_kv_set_number(&set, key, &v[i], 1, &err);
-        }
-    }
+    lu_test_ms_settings(&set, method, n, a, b, c);
     lu_renderer *r = NULL;
     memset(img, 0, sizeof *img);
     lu_result rc = lu_renderer_create(method, s, &set, LU_BACKEND_CPU, &r, &err);

@@ -35,17 +35,7 @@ static bool render(const lu_scene *s, const char *method, lu_backend b, int n, l
     for (size_t i = 0; i < sizeof k_cheap / sizeof k_cheap[0]; i++)
         if (strncmp(k_cheap[i].key, method, mlen) == 0 && k_cheap[i].key[mlen] == '.')
             lu_kv_set_number(&set, k_cheap[i].key, &k_cheap[i].value, 1, &err);
-    char key[64];
-    if (n > 0) {
-        double v[4] = {n, 0.5, 0.6, 0.6};
-        const char *names[4] = {"ms_octaves", "ms_a", "ms_b", "ms_c"};
-        snprintf(key, sizeof key, "%s.ms", method);
-        lu_kv_set_string(&set, key, "octaves", &err);
-        for (int i = 0; i < 4; i++) {
-            snprintf(key, sizeof key, "%s.%s", method, names[i]);
-            lu_kv_set_number(&set, key, &v[i], 1, &err);
-        }
-    }
+    lu_test_ms_settings(&set, method, n, 0.5, 0.6, 0.6);
     lu_renderer *r = NULL;
     memset(img, 0, sizeof *img);
     lu_result rc = lu_renderer_create(method, s, &set, b, &r, &err);

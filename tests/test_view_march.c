@@ -45,22 +45,7 @@ static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int b
     if (!c->grid) return c->km.density_scale;
     return c->skip ? lu_majorant_at(c->maj, bx, by, bz) : 1.0f;
 }
-static inline int lu_k_medium_count(const struct lu_k_ctx *c) { return 1; }
-static inline lu_k_medium lu_k_medium_get(const struct lu_k_ctx *c, int m) { return c->km; }
-/* Non-emissive media here (the emission tests are in test_emission.c). */
-static inline lu_vec3 lu_k_emission(const struct lu_k_ctx *c, int m, lu_vec3 p) { return lu_v3s(0.0f); }
-static inline int lu_k_light_count(const struct lu_k_ctx *c) { return 1; }
-static inline lu_k_light lu_k_light_get(const struct lu_k_ctx *c, int l) { return c->kl; }
-static inline float lu_k_shadow_depth(const struct lu_k_ctx *c, int map, int i, int j) { return 1e30f; }
-static inline int lu_k_rm_view_first(const struct lu_k_ctx *c, int l) { return 0; }
-static inline int lu_k_rm_view_count(const struct lu_k_ctx *c, int l) { return 0; }
-static inline lu_k_lightview lu_k_rm_view(const struct lu_k_ctx *c, int v) {
-    lu_k_lightview w;
-    memset(&w, 0, sizeof w);
-    return w;
-}
-static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k) { return k == 3 ? -1.0f : 0.0f; }
-static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) { return end ? 1e30f : 0.0f; }
+#include "lu_test_march.h"
 
 #include "methods/common/lu_view_march.h"
 
