@@ -104,7 +104,6 @@ static void put4(float *dst, lu_vec3 v, float w) {
 #define PUT_WF(i, f) p[4 * (i) + 3] = k.f;
 #define PUT_WI(i, f) p[4 * (i) + 3] = (float)k.f;
 
-/* Packs the records (lu_scene_layout.h) and uploads them. */
 static uint64_t emission_generation(const lu_medium *md) {
     bool grid = md->emission == LU_EMISSION_GRID || md->emission == LU_EMISSION_BLACKBODY;
     return grid ? md->emission_grid.generation : 0;
@@ -239,6 +238,7 @@ static lu_result upload_media(lu_gpu_scene *gs, const lu_scene *scene, const lu_
     return r;
 }
 
+/* Packs the records (lu_scene_layout.h) and uploads those that changed. */
 static lu_result upload_records(lu_gpu_scene *gs, const lu_scene *scene, const lu_frame_records *rec, lu_error *err) {
     const lu_camera *c = &scene->camera;
     const lu_k_camera cam = rec->cam;
