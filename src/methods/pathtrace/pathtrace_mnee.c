@@ -3,7 +3,7 @@
  * its boundary where a delta light's ray refracts towards x (Hanika, Droske
  * and Fascione 2015, "Manifold Next Event Estimation"), and the factor by
  * which the refraction spreads or concentrates the light's irradiance there.
- * Documented in docs/pathtrace.md ("Delta lights behind a refracting
+ * Documented in docs/pathtrace.md ("Lights behind a refracting
  * boundary").
  *
  * The renderer refracts with the triangles' geometric normals, so the
