@@ -22,4 +22,24 @@ static inline lu_k_lightview lu_k_rm_view(const struct lu_k_ctx *c, int v) {
 static inline float lu_k_rm_hit_fetch(const struct lu_k_ctx *c, int pixel, int k) { return k == 3 ? -1.0f : 0.0f; }
 static inline float lu_k_rm_span(const struct lu_k_ctx *c, int pixel, int m, int end) { return end ? 1e30f : 0.0f; }
 
+/* The slab |x| <= w, |y| <= 1, 0 <= z <= D of constant extinction sig_t and
+ * albedo (identity transform, phase g 0), lit by a directional light of
+ * irradiance E along +x: the closed-form cases of the view-march tests. */
+static inline void lu_test_march_slab(struct lu_k_ctx *c, float sig_t, float albedo, float w, float D, float E) {
+    memset(c, 0, sizeof *c);
+    c->km.w2i_x = lu_v3(1, 0, 0);
+    c->km.w2i_y = lu_v3(0, 1, 0);
+    c->km.w2i_z = lu_v3(0, 0, 1);
+    c->km.bounds_lo = c->km.support_lo = lu_v3(-w, -1, 0);
+    c->km.bounds_hi = c->km.support_hi = lu_v3(w, 1, D);
+    c->km.sigma_s = lu_v3s(albedo * sig_t);
+    c->km.sigma_a = lu_v3s((1.0f - albedo) * sig_t);
+    c->km.density_scale = 1.0f;
+    c->km.constant = 1;
+    c->km.max_pieces = 1;
+    c->kl.type = LU_K_LIGHT_DIRECTIONAL;
+    c->kl.direction = lu_v3(1, 0, 0);
+    c->kl.intensity = lu_v3s(E);
+}
+
 #endif

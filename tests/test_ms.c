@@ -41,21 +41,8 @@ static inline float lu_k_majorant(const struct lu_k_ctx *c, int m, int bx, int b
 static void test_slab_closed_form(void) {
     const float sig_t = 1.0f, albedo = 0.9f, w = 0.6f, D = 3.0f, E = 4.0f * (float)LU_PI, g = 0.6f;
     struct lu_k_ctx c;
-    memset(&c, 0, sizeof c);
-    c.km.w2i_x = lu_v3(1, 0, 0);
-    c.km.w2i_y = lu_v3(0, 1, 0);
-    c.km.w2i_z = lu_v3(0, 0, 1);
-    c.km.bounds_lo = c.km.support_lo = lu_v3(-w, -1, 0);
-    c.km.bounds_hi = c.km.support_hi = lu_v3(w, 1, D);
-    c.km.sigma_s = lu_v3s(albedo * sig_t);
-    c.km.sigma_a = lu_v3s((1.0f - albedo) * sig_t);
-    c.km.density_scale = 1.0f;
-    c.km.constant = 1;
-    c.km.max_pieces = 1;
+    lu_test_march_slab(&c, sig_t, albedo, w, D, E);
     c.km.g = g;
-    c.kl.type = LU_K_LIGHT_DIRECTIONAL;
-    c.kl.direction = lu_v3(1, 0, 0);
-    c.kl.intensity = lu_v3s(E);
     lu_k_rm_params P;
     memset(&P, 0, sizeof P);
     P.step = 0.01f;

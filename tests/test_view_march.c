@@ -246,20 +246,7 @@ static void test_skipping_bit_exact(void) {
 static void test_early_termination_slab(void) {
     const float sig_t = 1.0f, albedo = 0.8f, w = 0.01f, D = 8.0f, E = 4.0f * (float)LU_PI, B = 0.1f;
     struct lu_k_ctx c;
-    memset(&c, 0, sizeof c);
-    c.km.w2i_x = lu_v3(1, 0, 0);
-    c.km.w2i_y = lu_v3(0, 1, 0);
-    c.km.w2i_z = lu_v3(0, 0, 1);
-    c.km.bounds_lo = c.km.support_lo = lu_v3(-w, -1, 0);
-    c.km.bounds_hi = c.km.support_hi = lu_v3(w, 1, D);
-    c.km.sigma_s = lu_v3s(albedo * sig_t);
-    c.km.sigma_a = lu_v3s((1.0f - albedo) * sig_t);
-    c.km.density_scale = 1.0f;
-    c.km.constant = 1;
-    c.km.max_pieces = 1;
-    c.kl.type = LU_K_LIGHT_DIRECTIONAL;
-    c.kl.direction = lu_v3(1, 0, 0);
-    c.kl.intensity = lu_v3s(E);
+    lu_test_march_slab(&c, sig_t, albedo, w, D, E);
     lu_k_rm_params P;
     memset(&P, 0, sizeof P);
     P.background = lu_v3s(B);

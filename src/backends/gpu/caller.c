@@ -76,7 +76,7 @@ void lu_gpu_output_target(unsigned texture) {
 bool lu_gpu_output_written(void) { return t_written; }
 
 /* The texture's internal format as an index into k_formats, after checking
- * its kind and size. */
+ * that it is a texture of the current context and has the frame's size. */
 static const struct {
     GLenum format;
     const char *glsl;

@@ -222,12 +222,6 @@ LU_FN vec3 lu_k_rm_inscatter_ms(LU_CTX_PARAM, int map_res, lu_k_ms ms, vec3 x, v
     }
     return S;
 }
-
-/* Single scattering alone (no octaves), for callers outside the march. */
-LU_FN vec3 lu_k_rm_inscatter_exact(LU_CTX_PARAM, int map_res, vec3 x, vec3 d, float sa, float sb,
-                                   float dens[LU_K_RM_MAX_MEDIA], int nm) {
-    return lu_k_rm_inscatter_ms(LU_CTX, map_res, lu_k_ms_make(1, 1.0f, 1.0f, 1.0f), x, d, sa, sb, dens, nm);
-}
 #ifndef LU_K_RM_INSCATTER
 #define LU_K_RM_INSCATTER(ctx, P, x, d, sa, sb, dens, nm) lu_k_rm_inscatter_ms(ctx, P.map_res, P.ms, x, d, sa, sb, dens, nm)
 #endif
