@@ -39,7 +39,7 @@ test-quick: build
 
 # intercept_tls_get_addr=0: GCC 12's LeakSanitizer misreads glibc >= 2.25's
 # dynamic TLS blocks (libLLVM's, via llvmpipe) and can crash its tracer at exit;
-# evidence and why no leak coverage is lost: tests/cli/view.sh, docs/gpu.md.
+# evidence and why no leak coverage is lost: tests/cli/lib.sh, docs/gpu.md.
 asan: setup
 	cmake -S . -B $(BUILD_ASAN) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLUCENT_SANITIZE=ON $(CMAKE_FLAGS) >/dev/null
 	cmake --build $(BUILD_ASAN) -j $(JOBS) -- --no-print-directory

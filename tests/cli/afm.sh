@@ -5,10 +5,7 @@
 # a message naming the setting.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 scene="$src/scenes/layered_cube.json"
 "$lucent" methods >"$tmp/m.txt" 2>&1 || true
 grep -q "^ *afm" "$tmp/m.txt" || { echo "FAIL: afm not listed"; cat "$tmp/m.txt"; exit 1; }

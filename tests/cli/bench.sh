@@ -3,10 +3,7 @@
 # that of the image it saved against the truth it saved, as `lucent compare`
 # computes it from the files. Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 "$lucent" bench "$src/scenes/spot_shaft.json" --methods reference,raymarch --size 24x18 --frames 2 \
   --csv "$tmp/b.csv" --json "$tmp/b.json" --save-images "$tmp/img" >"$tmp/table.txt" 2>/dev/null
 grep -q "^reference *cpu" "$tmp/table.txt" || { echo "FAIL: no reference row"; cat "$tmp/table.txt"; exit 1; }

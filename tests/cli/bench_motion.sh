@@ -4,10 +4,7 @@
 # move exactly when the motion moves something, and errors against the truth
 # of each state within a bound. Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 export LUCENT_QUIET=1
 
 "$lucent" bench "$src/scenes/smoke_glow.json" "$src/scenes/spot_shaft.json" --methods raymarch --size 48x27 \
@@ -16,7 +13,7 @@ export LUCENT_QUIET=1
   { echo "FAIL: bench exited $?"; cat "$tmp/err.txt"; exit 1; }
 
 # Columns by name, so the check does not depend on their order.
-col() { head -1 "$tmp/m.csv" | tr ',' '\n' | grep -nx "$1" | cut -d: -f1; }
+col() { csv_col "$tmp/m.csv" "$1"; }
 c_scene=$(col scene) c_motion=$(col motion) c_params=$(col params) c_first=$(col rel_l2_first)
 c_last=$(col rel_l2_last) c_lvf=$(col rel_l2_last_vs_first) c_spp=$(col spp_equiv) c_ys=$(col yardstick_gsps)
 c_load=$(col load_avg)

@@ -3,11 +3,7 @@
 # on PATH, or with a bad name or folder, an error before anything renders.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 unset LUCENT_QUIET
 b=(bench "$src/scenes/spot_shaft.json" --size 24x18 --frames 1 --no-yardstick --sweep raymarch.steps=8,64
    --methods reference,raymarch)

@@ -5,11 +5,7 @@
 # --reference overrides it; at max_depth 1 it is reference's single
 # scattering within its own stated noise. Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 export LUCENT_CACHE_DIR=$tmp/cache
 unset LUCENT_QUIET
 
@@ -43,8 +39,7 @@ cat >"$tmp/s.json" <<'EOF'
 EOF
 b=(bench "$tmp/s.json" --methods reference,raymarch --frames 1 --warmup 0 --no-yardstick
    --truth pathtrace --set pathtrace.spp=4 --truth-max-spp 256)
-col() { head -1 "$1" | tr ',' '\n' | grep -nx "$2" | cut -d: -f1; }
-rel() { awk -F, -v c="$(col "$1" rel_l2_vs_pathtrace)" -v m="$2" '$2 == m { print $c }' "$1"; }
+rel() { awk -F, -v c="$(csv_col "$1" rel_l2_vs_pathtrace)" -v m="$2" '$2 == m { print $c }' "$1"; }
 
 # 1. Rendered and written to the cache, then read back: the same errors.
 "$lucent" "${b[@]}" --csv "$tmp/a.csv" >"$tmp/a.txt" 2>"$tmp/a.log" || fail "first run: $(cat "$tmp/a.log")"
@@ -60,9 +55,9 @@ for m in reference raymarch; do
   [[ -n $ra && $ra == "$rb" ]] || fail "$m: rel_l2 $ra first, $rb from the cache"
 done
 # The columns name the truth; the truth column says how it was judged.
-truth=$(awk -F, -v c="$(col "$tmp/a.csv" truth)" 'NR == 2 { print $c }' "$tmp/a.csv")
+truth=$(awk -F, -v c="$(csv_col "$tmp/a.csv" truth)" 'NR == 2 { print $c }' "$tmp/a.csv")
 [[ $truth =~ ^pathtrace(/8x8)?\([0-9.]+%\)$ ]] || fail "truth column \"$truth\""
-[[ -n $(col "$tmp/a.csv" speedup_vs_pathtrace) ]] || fail "csv header $(head -1 "$tmp/a.csv")"
+[[ -n $(csv_col "$tmp/a.csv" speedup_vs_pathtrace) ]] || fail "csv header $(head -1 "$tmp/a.csv")"
 grep -q "rel_l2_pt" "$tmp/a.txt" || fail "table header: $(cat "$tmp/a.txt")"
 
 # 2. The key: a setting, the scene file, a data file's bytes (same size and
@@ -99,8 +94,8 @@ grep -q "truth from cache $file" "$tmp/e.log" || fail "rewritten cache not read:
 "$lucent" render "$tmp/s.json" --method reference -o "$tmp/ref.exr" 2>/dev/null
 "$lucent" "${b[@]}" --reference "$tmp/ref.exr" --csv "$tmp/f.csv" >/dev/null 2>"$tmp/f.log" || fail "--reference"
 grep -q "pathtrace truth\|truth from cache" "$tmp/f.log" && fail "--reference still used the pathtrace truth"
-awk -F, -v c="$(col "$tmp/f.csv" truth)" 'NR > 1 && $c != "file" { exit 1 }' "$tmp/f.csv" || fail "truth column with --reference"
-r0=$(awk -F, -v c="$(col "$tmp/f.csv" rel_l2)" '$2 == "reference" { print $c }' "$tmp/f.csv")
+awk -F, -v c="$(csv_col "$tmp/f.csv" truth)" 'NR > 1 && $c != "file" { exit 1 }' "$tmp/f.csv" || fail "truth column with --reference"
+r0=$(awk -F, -v c="$(csv_col "$tmp/f.csv" rel_l2)" '$2 == "reference" { print $c }' "$tmp/f.csv")
 [[ $r0 == 0 ]] || fail "reference against its own image: rel_l2 $r0"
 
 # 5. Usage errors.
@@ -117,7 +112,7 @@ grep -q 'truth "foo": expected reference or pathtrace' "$tmp/u.log" || fail "--t
 # reference computes exactly, so reference's distance from that truth is
 # the truth's own noise: within 3x the noise the truth states.
 "$lucent" "${b[@]}" --set pathtrace.max_depth=1 --csv "$tmp/g.csv" >/dev/null 2>"$tmp/g.log" || fail "max_depth 1"
-t1=$(awk -F, -v c="$(col "$tmp/g.csv" truth)" '$2 == "reference" { print $c }' "$tmp/g.csv")
+t1=$(awk -F, -v c="$(csv_col "$tmp/g.csv" truth)" '$2 == "reference" { print $c }' "$tmp/g.csv")
 noise=$(sed 's/.*(\([0-9.]*\)%)/\1/' <<<"$t1")
 r1=$(rel "$tmp/g.csv" reference)
 awk -v r="$r1" -v n="$noise" 'BEGIN { exit !(r <= 3 * n / 100) }' ||

@@ -3,10 +3,7 @@
 # procedural scene on both backends, and the two images agree.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 "$lucent" profile --preset marble >"$tmp/p.txt"
 # Jensen et al.'s marble, red: the closed form and Simpson over [0, inf) agree to 6 digits.
 grep -q "closed form *0.866526" "$tmp/p.txt" || { echo "FAIL: closed form"; cat "$tmp/p.txt"; exit 1; }

@@ -4,10 +4,7 @@
 # parameters and a corrupt cache file fail with one clear line.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 export LUCENT_CACHE_DIR="$tmp/cache"
 opts=(--size 32x32 --set ddod.res=32 --set ddod.dirs=32 --set ddod.samples=2000 --set ddod.bands=4)
 "$lucent" render "$src/scenes/homogeneous_sphere.json" --method ddod "${opts[@]}" -o "$tmp/a.pfm" 2>"$tmp/a.log"

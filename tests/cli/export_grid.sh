@@ -4,10 +4,7 @@
 # made the grid through a rotated, scaled, shifted transform. Bad input gets
 # one line and a non-zero exit, and leaves no file. Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 cat >"$tmp/src.json" <<'JSON'
 {"camera": {"position": [0.4, 0.6, 4], "look_at": [0, 0, 0], "fov_y_deg": 40, "width": 24, "height": 20},
@@ -41,23 +38,6 @@ rel=$("$lucent" compare "$tmp/c.exr" "$tmp/a.exr" | awk '$1 == "rel_l2" { print 
 awk -v r="$rel" 'BEGIN { exit !(r > 0.05) }' || { echo "FAIL: medium 1 changes the image by only $rel"; fail=1; }
 rm -f "$tmp"/*.exr "$tmp/empty.json"
 
-# expect CODE NEEDLE -- command...: exit status CODE, NEEDLE on stderr, one line for failures.
-expect() {
-  local code=$1 needle=$2
-  shift 3
-  "$@" >"$tmp/out" 2>"$tmp/err"
-  local rc=$?
-  if [[ $rc -ne $code ]]; then
-    echo "FAIL: '$*' exited $rc, expected $code; stderr: $(cat "$tmp/err")"
-    fail=1
-  elif [[ -n $needle ]] && ! grep -qF -- "$needle" "$tmp/err"; then
-    echo "FAIL: '$*' stderr lacks '$needle': $(cat "$tmp/err")"
-    fail=1
-  elif [[ $code -ne 0 && $(wc -l <"$tmp/err") -ne 1 ]]; then
-    echo "FAIL: '$*' printed $(wc -l <"$tmp/err") error lines: $(cat "$tmp/err")"
-    fail=1
-  fi
-}
 expect 0 "" -- "$lucent" export-grid --help
 grep -q "usage: lucent export-grid" "$tmp/out" || { echo "FAIL: export-grid --help prints no usage"; fail=1; }
 expect 2 "missing -o" -- "$lucent" export-grid "$tmp/src.json"

@@ -6,11 +6,7 @@
 # means a hardware GPU, else the CPU (never llvmpipe), with one note line.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 scene=$src/scenes/smoke_glow.json
 
 # A build without the GPU backend cannot run this: skipped (exit 77), not passed.

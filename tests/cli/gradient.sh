@@ -4,10 +4,7 @@
 # scene without a medium fail with one clear line and exit 1.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 "$lucent" methods >"$tmp/m.txt"
 for m in gradient rbf pervoxel; do
   grep -q "^$m" "$tmp/m.txt" || grep -q " $m" "$tmp/m.txt" || { echo "FAIL: $m not listed"; cat "$tmp/m.txt"; exit 1; }

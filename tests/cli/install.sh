@@ -7,12 +7,8 @@
 # liblucent, when the build made one, must export lu_ names only.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-src=$2
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 build=$(cd "$(dirname "$lucent")" && pwd)
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
 export LUCENT_QUIET=1
 args=("$src/scenes/demo.json" raymarch 40x30 raymarch.steps=48)
 

@@ -11,14 +11,11 @@
 #   each end the whole job: a non-zero exit, a message, no output, no hang.
 # Args: LUCENT_BINARY SOURCE_DIR; LU_MPIEXEC from CMake (absent: skipped)
 set -u
-lucent=$1
-src=$2
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 [ -n "${LU_MPIEXEC:-}" ] || { echo "skipped: built without MPI"; exit 77; }
 # The launch options below are Open MPI's (the MPI scripts/setup.sh installs).
 "$LU_MPIEXEC" --version 2>/dev/null | grep -qiE "open ?mpi|open-mpi|OpenRTE" ||
   { echo "skipped: $LU_MPIEXEC is not Open MPI's launcher"; exit 77; }
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
 # CI runs as root, which mpirun refuses without these.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 # Open MPI's own libraries leave memory at MPI_Finalize; leak checks (the
@@ -30,7 +27,6 @@ mpi() {
   timeout -k 5 ${MPI_TIMEOUT:-120} "$LU_MPIEXEC" --oversubscribe --bind-to none --mca btl self,vader \
     --mca btl_vader_single_copy_mechanism none "$@"
 }
-fail=0
 scene=$src/scenes/layered_cube.json
 
 same() { # NAME ARGS... : one process, then 2 and 3 ranks, and 2 ranks by

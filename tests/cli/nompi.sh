@@ -4,11 +4,8 @@
 # without a launcher, and under a launcher it says that each rank works alone.
 # Args: LUCENT_BINARY SOURCE_DIR; LU_LUCENT_NOMPI from CMake (absent: skipped)
 set -eu
-lucent=$1
-src=$2
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 [ -n "${LU_LUCENT_NOMPI:-}" ] || { echo "skipped: no second CLI built without MPI (this build has no MPI)"; exit 77; }
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
 args=("$src/scenes/demo.json" --method raymarch --size 40x24)
 "$LU_LUCENT_NOMPI" render "${args[@]}" -o "$tmp/nompi.pfm" 2>"$tmp/err.txt" || { echo "FAIL: lucent_nompi render"; cat "$tmp/err.txt"; exit 1; }
 "$lucent" render "${args[@]}" -o "$tmp/mpi.pfm" 2>/dev/null

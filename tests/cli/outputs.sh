@@ -2,11 +2,7 @@
 # Outputs are checked before the work starts, and an interrupted render
 # leaves no partial or temporary file. Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 no_temp() { # no lu_atomic_file temporary left in the folder
   local left
   left=$(find "$tmp" -maxdepth 1 -name '*.tmp.*' | head -1)

@@ -3,11 +3,7 @@
 # the render and ends on the same image as a one-shot render; bad values are
 # usage errors. Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 scene="$src/scenes/spot_shaft.json"
 env -u LUCENT_QUIET "$lucent" render "$scene" --size 16x12 --method pathtrace --set pathtrace.spp=5 \

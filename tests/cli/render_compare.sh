@@ -2,10 +2,7 @@
 # render writes every format; compare reads them back and its metrics are
 # exact for an image against itself. Args: LUCENT_BINARY SOURCE_DIR
 set -eu
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 
 "$lucent" render "$src/scenes/smoke_glow.json" --size 24x18 -o "$tmp/a.exr" 2>/dev/null
 "$lucent" render "$src/scenes/smoke_glow.json" --size 24x18 -o "$tmp/a.pfm" 2>/dev/null

@@ -4,10 +4,7 @@
 # the frame's file alone, `--frame-range` outputs, and the errors of bad
 # ranges and missing frames. Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 check() { [[ $1 -eq 0 ]] || { echo "FAIL: $2"; fail=1; }; }
 
 scene() { # scene DENSITY_JSON [EXTRA_ROOT_KEYS]
@@ -63,7 +60,7 @@ usage "more than one run" render "$tmp/seq.json" --frame-range 1-2 -o "$tmp/a_#_
 "$lucent" bench "$tmp/seq.json" --methods raymarch --motion medium --frames 3 --stability --no-yardstick \
   --csv "$tmp/b.csv" >/dev/null 2>"$tmp/err"
 check $? "bench --stability: $(cat "$tmp/err")"
-col() { head -1 "$tmp/b.csv" | tr ',' '\n' | grep -nx "$1" | cut -d: -f1; }
+col() { csv_col "$tmp/b.csv" "$1"; }
 awk -F, -v f="$(col flicker)" -v u="$(col update_ms)" -v l="$(col rel_l2_last_vs_first)" \
   'NR == 2 { ok = ($f > 0.5 && $f < 2 && $u > 0 && $l > 0) } END { exit !(NR == 2 && ok) }' "$tmp/b.csv"
 check $? "bench CSV: $(cat "$tmp/b.csv")"

@@ -8,11 +8,7 @@
 # the environment variables the CLI reads. The table of what is checked is the output of `lucent methods`.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 export LUCENT_QUIET=1
 scene=$src/scenes/homogeneous_sphere.json
 checked=0

@@ -3,11 +3,7 @@
 # crash, never an output file), and images do not depend on the thread count:
 # 1, 2, 3 and 256 threads give bit-identical images. Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 export LUCENT_QUIET=1
 
 for bad in 1000 0 257 -4 abc 8x " 8" 1e3; do

@@ -6,33 +6,12 @@
 # lu_vdb_gen (tests/vdb_gen.cpp) in the build folder, the working folder.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 if [[ ! -x ./lu_vdb_gen ]]; then
   echo "skipped: built without libopenvdb-dev (no lu_vdb_gen, no converter)"
   exit 77
 fi
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail=0
 ./lu_vdb_gen "$tmp" || { echo "FAIL: lu_vdb_gen"; exit 1; }
-
-# expect CODE NEEDLE -- command...: exit status CODE, NEEDLE on stderr, one line for failures.
-expect() {
-  local code=$1 needle=$2
-  shift 3
-  "$@" >"$tmp/out" 2>"$tmp/err"
-  local rc=$?
-  if [[ $rc -ne $code ]]; then
-    echo "FAIL: '$*' exited $rc, expected $code; stderr: $(cat "$tmp/err")"
-    fail=1
-  elif [[ -n $needle ]] && ! grep -qF -- "$needle" "$tmp/err"; then
-    echo "FAIL: '$*' stderr lacks '$needle': $(cat "$tmp/err")"
-    fail=1
-  elif [[ $code -ne 0 && $(wc -l <"$tmp/err") -ne 1 ]]; then
-    echo "FAIL: '$*' printed $(wc -l <"$tmp/err") error lines: $(cat "$tmp/err")"
-    fail=1
-  fi
-}
 
 expect 0 "" -- "$lucent" info "$tmp/fog.vdb"
 grep -q 'grid      "temperature" 4 x 1 x 1 voxels' "$tmp/out" || { echo "FAIL: info fog.vdb: $(cat "$tmp/out")"; fail=1; }

@@ -7,31 +7,10 @@
 # passes converge.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 export LUCENT_QUIET=1
-# Under `make asan`: LeakSanitizer's __tls_get_addr interceptor (GCC 12's
-# libsanitizer, LLVM < 17) takes a dynamic TLS block whose address is 16 mod
-# 4096 for one from glibc 2.19-2.24 and reads the 16 bytes before it as that
-# version's {size, start} header. glibc >= 2.25 mallocs the blocks, so those
-# bytes are ASan's own chunk header and the leak check scans a bogus range
-# (seen: "DTLS 11 at 0x1010-0x1800002112", module 11 = libLLVM-15, whose TLS
-# the main thread first touches when llvmpipe compiles a shader) and dies
-# with "Tracer caught signal 11" at exit. Whether the block lands there
-# depends on the heap's history, not on a bug in lucent (docs/gpu.md,
-# "LeakSanitizer tracer crash"). On this glibc the interceptor records no
-# usable range for any other block either (size 0: "Can't guess glibc
-# version"), so switching it off loses no leak coverage. A binary built
-# without ASan ignores ASAN_OPTIONS.
-export ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}intercept_tls_get_addr=0"
-
-# A build without the viewer cannot run this: skipped (exit 77), not passed.
-if "$lucent" view "$src/scenes/smoke_glow.json" 2>&1 | grep -q "built without the viewer"; then
-  echo "skipped: this lucent was built without the viewer"; exit 77
-fi
+asan_skip_tls_interceptor  # the viewer under make asan (tests/cli/lib.sh)
+require_viewer "$src/scenes/smoke_glow.json"
 "$lucent" view --help | grep -q "screenshot" || fail "view --help"
 "$lucent" view "$src/scenes/smoke_glow.json" --method nosuch 2>/dev/null
 [[ $? == 2 ]] || fail "unknown method: expected exit 2"

@@ -11,18 +11,10 @@
 # --frames and --budget values, and a light script without a light, exit 2.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 export LUCENT_QUIET=1
-# see tests/cli/view.sh: LeakSanitizer's TLS interceptor under make asan
-export ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}intercept_tls_get_addr=0"
-# A build without the viewer cannot run this: skipped (exit 77), not passed.
-if "$lucent" view "$src/scenes/smoke_glow.json" 2>&1 | grep -q "built without the viewer"; then
-  echo "skipped: this lucent was built without the viewer"; exit 77
-fi
+asan_skip_tls_interceptor  # the viewer under make asan (tests/cli/lib.sh)
+require_viewer "$src/scenes/smoke_glow.json"
 scene=$src/scenes/smoke_glow.json
 cheap=(--method raymarch --set raymarch.steps=32 --size 160x90)
 

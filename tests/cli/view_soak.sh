@@ -8,16 +8,10 @@
 # method the scene takes.
 # Args: LUCENT_BINARY SOURCE_DIR
 set -u
-lucent=$1
-src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 export LUCENT_QUIET=1
-export ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}intercept_tls_get_addr=0"
-if "$lucent" view "$src/scenes/demo.json" 2>&1 | grep -q "built without the viewer"; then
-  echo "skipped: this lucent was built without the viewer"; exit 77
-fi
+asan_skip_tls_interceptor  # the viewer under make asan (tests/cli/lib.sh)
+require_viewer "$src/scenes/demo.json"
 command -v xvfb-run >/dev/null || { echo "skipped: no xvfb-run"; exit 77; }
 n=$("$lucent" methods | grep -c '^[a-z]* \[')
 frames=$((20 * n))
