@@ -376,6 +376,7 @@ typedef struct row {
     double prepare_ms, median_ms, min_ms, max_ms;
     double ref_ms;          /* the truth's render time for this row's first state */
     double peak_mb;
+    double held_mb, gpu_mb; /* what the renderer held after its frames (lu_renderer_stats.memory) */
     int frames;
     lu_metrics err;         /* the last frame against the truth of its state */
     bool has_err;
@@ -480,6 +481,9 @@ static lu_result bench_one(motion_state *ms, const char *method, lu_backend back
         out->update_ms = frames % 2 ? up_list[frames / 2] : 0.5 * (up_list[frames / 2 - 1] + up_list[frames / 2]);
         size_t rss1 = lu_peak_rss_bytes();
         out->peak_mb = (double)(rss1 > rss0 ? rss1 : rss0) / (1024.0 * 1024.0);
+        lu_memory held = lu_cli_stats(r).memory;
+        out->held_mb = (double)(held.bytes + held.accel_bytes) / (1024.0 * 1024.0);
+        out->gpu_mb = (double)held.gpu_bytes / (1024.0 * 1024.0);
     }
     free(ms_list);
     free(up_list);
@@ -528,12 +532,13 @@ static void print_table(FILE *f, const row *rows, int n, const char *sfx) {
     colname(rf, sizeof rf, "rel_l2_first", sfx);
     int wx = *sfx ? (int)strlen(x) : 10, wr = *sfx ? (int)strlen(rl) : 10, wp = *sfx ? (int)strlen(ps) : 9,
         wf = *sfx ? (int)strlen(rf) : 12;
-    fprintf(f, "%-12s %-4s %12s %12s %*s %10s %*s %*s %-7s %*s %10s %-20s %s\n", "method", "dev", "prepare_ms",
-            "frame_ms", wx, x, "peak_MB", wr, rl, wp, ps, "motion", wf, rf, "spp_eq", "truth", "scene params");
+    fprintf(f, "%-12s %-4s %12s %12s %*s %10s %9s %*s %*s %-7s %*s %10s %-20s %s\n", "method", "dev", "prepare_ms",
+            "frame_ms", wx, x, "peak_MB", "held_MB", wr, rl, wp, ps, "motion", wf, rf, "spp_eq", "truth", "scene params");
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
-        fprintf(f, "%-12s %-4s %12.2f %12.2f %*.2f %10.1f ", r->method, lu_backend_name(r->backend), r->prepare_ms,
-                r->median_ms, wx, r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb);
+        fprintf(f, "%-12s %-4s %12.2f %12.2f %*.2f %10.1f %9.1f ", r->method, lu_backend_name(r->backend),
+                r->prepare_ms, r->median_ms, wx, r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb,
+                r->held_mb + r->gpu_mb);
         if (r->has_err) fprintf(f, "%*.5f %*.2f ", wr, r->err.rel_l2, wp, psnr_out(r->err.psnr));
         else fprintf(f, "%*s %*s ", wr, "-", wp, "-");
         fprintf(f, "%-7s ", k_motion_names[r->motion]);
@@ -553,7 +558,7 @@ static bool write_csv(const char *path, const row *rows, int n, const char *sfx,
     const char *t = *sfx ? sfx : "_vs_reference";
     fprintf(f, "scene,method,backend,prepare_ms,frame_ms_median,frame_ms_min,frame_ms_max,frames,speedup%s,"
                "peak_mb,rel_l2%s,rel_l1%s,rmse%s,psnr%s,motion,params,rel_l2_first%s,rel_l2_last%s,rel_l2_last_vs_first,"
-               "spp_equiv,yardstick_gsps,load_avg,width,height,threads,flicker,update_ms,truth\n",
+               "spp_equiv,yardstick_gsps,load_avg,width,height,threads,flicker,update_ms,truth,held_mb,gpu_mb\n",
             t, sfx, sfx, sfx, sfx, sfx, sfx);
     for (int i = 0; i < n; i++) {
         const row *r = &rows[i];
@@ -570,7 +575,7 @@ static bool write_csv(const char *path, const row *rows, int n, const char *sfx,
         fprintf(f, "%.6g,%.2f,%.4f,%.2f,%d,%d,%d,", r->last_vs_first, r->spp_equiv, r->gsps, r->load_avg, r->width,
                 r->height, lu_thread_count());
         if (r->flicker >= 0.0) fprintf(f, "%.6g", r->flicker);
-        fprintf(f, ",%.3f,%s\n", r->update_ms, r->truth);
+        fprintf(f, ",%.3f,%s,%.3f,%.3f\n", r->update_ms, r->truth, r->held_mb, r->gpu_mb);
     }
     return lu_atomic_commit(&af, err) == LU_OK;
 }
@@ -610,9 +615,9 @@ static bool write_json(const char *path, const row *rows, int n, double gsps, do
         json_string(f, r->truth);
         fprintf(f,
                 ", \"prepare_ms\": %.3f, \"frame_ms\": %.3f, \"frames\": %d, \"speedup%s\": %.4f, "
-                "\"peak_mb\": %.1f",
+                "\"peak_mb\": %.1f, \"held_mb\": %.3f, \"gpu_mb\": %.3f",
                 r->prepare_ms, r->median_ms, r->frames, *sfx ? sfx : "_vs_reference",
-                r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb);
+                r->ref_ms > 0 ? r->ref_ms / r->median_ms : 0.0, r->peak_mb, r->held_mb, r->gpu_mb);
         if (r->has_err)
             fprintf(f, ", \"rel_l2%s\": %.6g, \"rel_l1%s\": %.6g, \"psnr%s\": %.4f, \"rel_l2_first%s\": %.6g, "
                        "\"rel_l2_last%s\": %.6g",

@@ -75,9 +75,10 @@ static void usage(void) {
            "                      every 60 (with --stats: resident memory per frame); after the N\n"
            "                      frames it renders with no input until the full image is\n"
            "                      shown (at most 60 s), then prints a summary line\n"
-           "  --stats FILE.csv    one row per frame: frame,ms,scale,rel_l2,rss_kb (frame 0: the start\n"
-           "                      view; rel_l2: of the frames showing the final view, against a\n"
-           "                      fresh renderer's full image of it; empty for the others)\n"
+           "  --stats FILE.csv    one row per frame: frame,ms,scale,rel_l2,rss_kb,held_kb (frame 0:\n"
+           "                      the start view; rel_l2: of the frames showing the final view,\n"
+           "                      against a fresh renderer's full image of it; empty for the\n"
+           "                      others; held_kb: what the renderer holds, GPU included)\n"
            "\n"
            "controls:\n"
            "  left drag           orbit the camera around its look-at point\n"
@@ -155,6 +156,7 @@ typedef struct stats_row {
     double rel_l2;             /* < 0: not available */
     bool full;                 /* the full image: scale 1 at full quality (progressive: all passes) */
     long rss_kb;               /* the process's resident memory after the frame (0: unknown) */
+    long held_kb;              /* what the renderer held then (lu_renderer_stats.memory, GPU included) */
 } stats_row;
 
 enum { Q_FULL = 0, Q_MOVING = 1 };
@@ -1004,9 +1006,11 @@ static bool stats_add(viewer *v, int frame, double ms, bool new_view) {
                      -1.0,
                      v->img.width == v->width && v->img.height == v->height && v->quality == Q_FULL &&
                          (!progressive(v) || v->passes >= param_value(v, "pathtrace", "spp")),
-                     0};
+                     0, 0};
     if (r->shown) memcpy(r->shown, v->shown.rgb, n * sizeof(float));
     r->rss_kb = lu_resident_kb();
+    lu_memory held = lu_cli_stats(v->r).memory;
+    r->held_kb = (long)((held.bytes + held.accel_bytes + held.gpu_bytes) / 1024);
     return true;
 }
 
@@ -1041,12 +1045,12 @@ static bool stats_write(const viewer *v, const char *path, lu_error *err) {
     lu_atomic_file f;
     if (lu_atomic_open(&f, path, err) != LU_OK) return false;
     FILE *fp = f.fp;
-    fprintf(fp, "frame,ms,scale,rel_l2,rss_kb\n");
+    fprintf(fp, "frame,ms,scale,rel_l2,rss_kb,held_kb\n");
     for (int i = 0; i < v->row_count; i++) {
         const stats_row *r = &v->rows[i];
         fprintf(fp, "%d,%.3f,%.4f,", r->frame, r->ms, r->scale);
         if (r->rel_l2 >= 0.0) fprintf(fp, "%.6g", r->rel_l2);
-        fprintf(fp, ",%ld\n", r->rss_kb);
+        fprintf(fp, ",%ld,%ld\n", r->rss_kb, r->held_kb);
     }
     return lu_atomic_commit(&f, err) == LU_OK;
 }

@@ -95,7 +95,7 @@ static void test_atomic_file(void) {
     size_t size;
     CHECK_OK(lu_read_file(path, 100, &data, &size, &err), &err);
     CHECK(size == 5 && strcmp(data, "hello") == 0);
-    free(data);
+    lu_free(data);
     CHECK(lu_read_file(path, 3, &data, &size, &err) == LU_ERR_LIMIT);
     CHECK(lu_read_file("no/such/file", 100, &data, &size, &err) == LU_ERR_IO);
     CHECK(strstr(err.message, "no/such/file") != NULL);

@@ -200,8 +200,8 @@ static void test_poisson(void) {
     CHECK(wrong == 0);
     /* denser where the radius is smaller */
     CHECK_MSG(left > 2 * (count - left), "%d of %d points in the small-radius half", left, count);
-    free(pts);
-    free(r);
+    lu_free(pts);
+    lu_free(r);
     free(rad);
 }
 
@@ -374,7 +374,7 @@ static void test_traced_update(void) {
         if (step == 3) s.lights[1].intensity = lu_v3(10.0f, 20.0f, 40.0f);
         if (step == 0) want_view++, want_lights++, want_retraced += 2;
         if (step == 5) {  /* a third light: the table grows (view entries retraced with it) */
-            lu_light *l = realloc(s.lights, 3 * sizeof *l);
+            lu_light *l = lu_realloc(s.lights, 3 * sizeof *l);
             CHECK(l != NULL);
             if (!l) break;
             s.lights = l;

@@ -767,7 +767,7 @@ static void test_voxelize_box_exact(void) {
         lu_vec3 c7 = lu_affine_point(&g.index_to_world, lu_v3(7, 2, 5));
         CHECK(c0.x == 0.0625f && c0.y == 0.0625f && c0.z == 0.0625f);
         CHECK(c7.x == 0.9375f && c7.y == 0.3125f && c7.z == 0.6875f);
-        free(g.data);
+        lu_free(g.data);
 
         /* Non-cubic bounds cutting through the box, ss = 2: extents 1.25 x
          * 0.5 x 0.375 at resolution 10 give h = 1/8 and 10 x 4 x 3 voxels.
@@ -791,7 +791,7 @@ static void test_voxelize_box_exact(void) {
                 }
         CHECK_MSG(wrong == 0 && nonzero == 8 && halves == 2, "variant %d non-cubic: %d voxels differ, %d nonzero",
                   variant, wrong, nonzero);
-        free(g.data);
+        lu_free(g.data);
         lu_accel_destroy(a);
         mesh_free(&b);
     }
@@ -829,7 +829,7 @@ static void test_voxelize_odd_row_fallback(void) {
                 wrong += g.data[((size_t)z * 8 + y) * 8 + x] != box_voxel_overlap(vlo, 0.125, blo, bhi);
             }
     CHECK_MSG(wrong == 0, "%d voxels differ", wrong);
-    free(g.data);
+    lu_free(g.data);
     lu_accel_destroy(a);
     mesh_free(&b);
     mesh_free(&flap);
@@ -919,7 +919,7 @@ static void test_voxelize_sphere(void) {
      * bodies at distance rho; for a convex body Steiner's formula bounds both
      * gaps by A rho + M rho^2 + 4/3 pi rho^3, with M <= 4 pi r for a body
      * inside a ball of radius r (A = the polyhedron's area). */
-    free(g.data);
+    lu_free(g.data);
     const int res2 = 64, ss2 = 4;
     CHECK_OK(lu_voxelize(a, bounds, res2, ss2, &g, &err), &err);
     double sum = 0;
@@ -929,7 +929,7 @@ static void test_voxelize_sphere(void) {
     const double tol = area * rho + 4 * PI_D * r * rho * rho + 4.0 / 3.0 * PI_D * rho * rho * rho;
     CHECK(vol > 0 && vol < 4.0 / 3.0 * PI_D * r * r * r);
     CHECK_NEAR(sum * h2 * h2 * h2, vol, tol);
-    free(g.data);
+    lu_free(g.data);
     CHECK_OK(lu_voxelize(a, bounds, res, ss, &g, &err), &err);
     /* Voxels wholly inside the inscribed ball are 1, wholly outside the
      * circumscribed ball 0. */
@@ -945,7 +945,7 @@ static void test_voxelize_sphere(void) {
                 if (dc - half_diag > r && f != 0.0f) bad++;
             }
     CHECK_MSG(bad == 0, "%d voxels wrong far from the surface", bad);
-    free(g.data);
+    lu_free(g.data);
     lu_accel_destroy(a);
     mesh_free(&s);
 }
@@ -1066,7 +1066,7 @@ static void test_errors(void) {
     /* A flat box still gets one voxel layer. */
     CHECK_OK(lu_voxelize(a, (lu_aabb){{0, 0, 0.5f}, {1, 1, 0.5f}}, 4, 2, &g, &err), &err);
     CHECK(g.nx == 4 && g.ny == 4 && g.nz == 1);
-    free(g.data);
+    lu_free(g.data);
     lu_accel_destroy(a);
 
     /* A committed accel with no meshes: nothing is hit, the grid is empty. */
@@ -1079,7 +1079,7 @@ static void test_errors(void) {
     CHECK(!lu_aabb_valid(lu_accel_bounds(a)));
     CHECK_OK(lu_voxelize(a, bx, 4, 2, &g, &err), &err);
     CHECK(g.nx == 4 && g.max_value == 0.0f);
-    free(g.data);
+    lu_free(g.data);
     lu_accel_destroy(a);
     lu_accel_destroy(NULL);
     mesh_free(&m);

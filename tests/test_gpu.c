@@ -69,7 +69,7 @@ static void check_dir(const char *sub, int *found) {
         const char *emb = lu_gpu_source_find(name);
         CHECK_MSG(emb != NULL, "%s is not embedded", name);
         if (emb && disk) CHECK_MSG(strlen(emb) == size && memcmp(emb, disk, size) == 0, "%s differs from disk", name);
-        free(disk);
+        lu_free(disk);
         (*found)++;
     }
     closedir(d);
@@ -120,7 +120,7 @@ static void test_assemble_exact(void) {
     CHECK(strcmp(map.names[1], "m.comp") == 0);
     CHECK(strcmp(map.names[2], "a.h") == 0);
     CHECK(strcmp(map.names[3], "sub/b.h") == 0);
-    free(text);
+    lu_free(text);
 }
 
 static void test_assemble_embedded(void) {
@@ -137,7 +137,7 @@ static void test_assemble_embedded(void) {
     CHECK(strcmp(map.names[2], "kernels/lu_selftest.h") == 0);
     CHECK(strcmp(map.names[3], "kernels/lu_kernel.h") == 0);
     CHECK(strcmp(map.names[4], "kernels/lu_grid_sample.glsl") == 0);
-    free(text);
+    lu_free(text);
 }
 
 static void test_assemble_errors(void) {

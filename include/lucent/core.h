@@ -127,10 +127,13 @@ lu_result lu_kv_check_known(const lu_kvlist *list, const char *const *known, con
  * passes them in here.
  *
  * Memory: every allocation of the library itself goes through alloc /
- * realloc / free (all three or none; NULL: the C library's). Memory an lu_
- * call hands to the caller to release (lu_read_file's buffer) is released
- * with lu_free. The libraries lucent uses (Embree, FFTW, libpng, zlib,
- * OpenEXR, cJSON, the GL driver) allocate through their own allocators. */
+ * realloc / free (all three or none; NULL: the C library's). Each block
+ * asks the hook for its size plus one max_align_t, a header that records
+ * the size and the account it is charged to (lu_memory_get,
+ * lu_renderer_stats.memory). Memory an lu_ call hands to the caller to
+ * release (lu_read_file's buffer) is released with lu_free. The libraries
+ * lucent uses (Embree, FFTW, libpng, zlib, OpenEXR, cJSON, the GL driver)
+ * allocate through their own allocators. */
 
 typedef enum lu_log_level {
     LU_LOG_ERROR = 0,
@@ -180,6 +183,24 @@ void *lu_calloc(size_t count, size_t size);   /* zeroed; NULL on overflow */
 void *lu_realloc(void *ptr, size_t size);
 void lu_free(void *ptr);
 char *lu_strdup(const char *s);
+
+/* Memory, counted where it is allocated. bytes, peak_bytes and blocks are
+ * the library's own heap blocks through lu_malloc (sizes as asked, headers
+ * left out); accel_bytes is what Embree reports for its acceleration
+ * structures (its memory monitor); gpu_bytes the GPU buffers and textures
+ * lucent created, at their storage size. Not counted: other libraries'
+ * allocations, mapped files (a sparse .nvdb grid read in place), and what
+ * the GL driver keeps for itself. */
+typedef struct lu_memory {
+    size_t bytes;
+    size_t peak_bytes;             /* the most bytes held at once */
+    size_t blocks;
+    size_t accel_bytes;
+    size_t gpu_bytes;
+} lu_memory;
+/* The whole process's figures: every account together, and what was
+ * allocated outside any renderer (scenes, grids, images). */
+void lu_memory_get(lu_memory *out);
 /* The process's resident memory in KiB (Linux /proc/self/statm; 0 where
  * unknown): the whole process, the libraries lucent uses included, for
  * soak runs and the viewer's --stats. */

@@ -175,6 +175,13 @@ typedef struct lu_renderer_stats {
                                     * render_ms minus this is the frame's global stages */
     bool texture_direct;           /* the latest lu_renderer_render_texture wrote the texture on the GPU,
                                     * with no copy through the CPU */
+    /* What the renderer holds now (peak_bytes: the most at once since make):
+     * what its calls allocated, its worker threads' share included, and
+     * have not freed. Not the images the caller passes to render (a frame
+     * rendered into a texture is counted: the renderer keeps it), nor the
+     * GPU device that every renderer shares. A renderer's figures summed
+     * with the rest of the process make lu_memory_get. */
+    lu_memory memory;
 } lu_renderer_stats;
 
 lu_result lu_renderer_get_stats(const lu_renderer *r, lu_renderer_stats *out, lu_error *err);

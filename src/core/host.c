@@ -1,6 +1,6 @@
-/* The host's hooks (lu_host): the one choke point of the library's memory,
- * its log, and the version query. Set once, before other calls, so the hot
- * paths read the hooks without a lock. */
+/* The host's hooks (lu_host): its settings, the log, and the version query
+ * (the allocator's hooks are memory.c's). Set once, before other calls, so
+ * the hot paths read the hooks without a lock. */
 #include <lucent/core.h>
 
 #include <stdarg.h>
@@ -11,53 +11,13 @@
 #include <unistd.h>
 
 #include "core/core_internal.h"
+#include "core/memory.h"
 
 static lu_host g_host;
 static char g_vdb_converter[1024];   /* the host's vdb_converter, copied ("" = search) */
-/* Allocations made through the current allocator and not yet freed: a new
- * allocator is refused while its predecessor's memory is alive. */
-static atomic_llong g_live;
 
 uint32_t lu_version(void) { return (uint32_t)LU_VERSION; }
 const char *lu_version_string(void) { return LU_VERSION_STRING; }
-
-void *lu_malloc(size_t size) {
-    void *p = g_host.alloc ? g_host.alloc(size ? size : 1, g_host.user) : malloc(size ? size : 1);
-    if (p) atomic_fetch_add_explicit(&g_live, 1, memory_order_relaxed);
-    return p;
-}
-
-void *lu_calloc(size_t count, size_t size) {
-    if (size && count > SIZE_MAX / size) return NULL;
-    size_t n = count * size;
-    if (!g_host.alloc) {
-        void *p = calloc(n ? n : 1, 1);
-        if (p) atomic_fetch_add_explicit(&g_live, 1, memory_order_relaxed);
-        return p;
-    }
-    void *p = lu_malloc(n);
-    if (p) memset(p, 0, n);
-    return p;
-}
-
-void *lu_realloc(void *ptr, size_t size) {
-    if (!ptr) return lu_malloc(size);
-    return g_host.realloc ? g_host.realloc(ptr, size ? size : 1, g_host.user) : realloc(ptr, size ? size : 1);
-}
-
-void lu_free(void *ptr) {
-    if (!ptr) return;
-    atomic_fetch_sub_explicit(&g_live, 1, memory_order_relaxed);
-    if (g_host.free) g_host.free(ptr, g_host.user);
-    else free(ptr);
-}
-
-char *lu_strdup(const char *s) {
-    size_t n = strlen(s) + 1;
-    char *p = lu_malloc(n);
-    if (p) memcpy(p, s, n);
-    return p;
-}
 
 /* ---- the log ----------------------------------------------------------- */
 
@@ -87,9 +47,8 @@ void lu_log_msg(lu_log_level level, const char *fmt, ...) {
 lu_result lu_host_set(const lu_host *host, lu_error *err) {
     static const lu_host k_default;
     const lu_host *h = host ? host : &k_default;
-    int hooks = (h->alloc != NULL) + (h->realloc != NULL) + (h->free != NULL);
-    if (hooks != 0 && hooks != 3)
-        return lu_fail(err, LU_ERR_INVALID_ARG, "host: alloc, realloc and free are set together or not at all");
+    lu_result r = lu_mem_allocator_check(h, err);
+    if (r != LU_OK) return r;
     if (h->threads < 0 || h->threads > LU_MAX_THREADS)
         return lu_fail(err, LU_ERR_RANGE, "host: threads = %d outside [0, %d] (0 = automatic)", h->threads,
                        LU_MAX_THREADS);
@@ -97,23 +56,17 @@ lu_result lu_host_set(const lu_host *host, lu_error *err) {
         return lu_fail(err, LU_ERR_INVALID_ARG, "host: gpu = %d is not an lu_gpu_choice", (int)h->gpu);
     if (h->gpu_device_only && (h->gpu_device < 0 || h->gpu_device >= 16))
         return lu_fail(err, LU_ERR_RANGE, "host: gpu_device = %d outside [0, 15]", h->gpu_device);
-    bool same_alloc = h->alloc == g_host.alloc && h->realloc == g_host.realloc && h->free == g_host.free &&
-                      (h->alloc == NULL || h->user == g_host.user);
-    if (!same_alloc && atomic_load(&g_live) > 0)
-        return lu_fail(err, LU_ERR_INVALID_ARG,
-                       "host: the allocator cannot change while %lld allocations of the previous one are alive",
-                       (long long)atomic_load(&g_live));
     if (h->vdb_converter && (!*h->vdb_converter || strlen(h->vdb_converter) >= sizeof g_vdb_converter))
         return lu_fail(err, LU_ERR_INVALID_ARG, "host: vdb_converter must be a path of 1 to %zu bytes",
                        sizeof g_vdb_converter - 1);
-    lu_result r = lu_set_thread_count(h->threads, err);
+    r = lu_set_thread_count(h->threads, err);
     if (r == LU_OK) r = lu_set_cache_dir(h->cache_dir, err);
     if (r != LU_OK) return r;
+    lu_mem_set_allocator(h);
     g_host = *h;
     g_host.cache_dir = NULL;   /* the library's copy lives in the cache module */
     snprintf(g_vdb_converter, sizeof g_vdb_converter, "%s", h->vdb_converter ? h->vdb_converter : "");
     g_host.vdb_converter = NULL;
-    if (!same_alloc) atomic_store(&g_live, 0);
     return LU_OK;
 }
 
@@ -122,13 +75,4 @@ void lu_host_get(lu_host *out) {
     out->threads = lu_thread_count();
     out->cache_dir = lu_cache_dir_copy();
     out->vdb_converter = g_vdb_converter[0] ? g_vdb_converter : NULL;
-}
-
-long lu_resident_kb(void) {
-    FILE *f = fopen("/proc/self/statm", "r");
-    long pages = 0, res = 0;
-    if (!f) return 0;
-    if (fscanf(f, "%ld %ld", &pages, &res) != 2) res = 0;
-    fclose(f);
-    return res * (sysconf(_SC_PAGESIZE) / 1024);
 }

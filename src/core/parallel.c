@@ -20,6 +20,8 @@
 #include <stdlib.h>
 #include <unistd.h>
 
+#include "core/memory.h"
+
 /* ---- thread count ----------------------------------------------------- */
 
 static atomic_int g_thread_count; /* set by lu_set_thread_count; 0 = default */
@@ -67,6 +69,7 @@ typedef struct job {
     int64_t n, grain;
     lu_range_fn fn;
     void *ctx;
+    lu_mem_account *account; /* the caller's: its helpers' allocations are charged to it */
     atomic_llong next; /* first index of the next unclaimed chunk */
     atomic_llong done; /* indices finished, for the progress bar */
     /* Under pool.mu: */
@@ -147,7 +150,9 @@ static void *worker_main(void *unused) {
         j->active++;
         if (--j->free_slots == 0) dequeue(j);
         pthread_mutex_unlock(&pool.mu);
+        lu_mem_account_use(j->account);
         run_chunks(j, index, NULL);
+        lu_mem_account_use(NULL);
         pthread_mutex_lock(&pool.mu);
         dequeue(j); /* its chunks are all claimed */
         if (--j->active == 0) pthread_cond_broadcast(&pool.left);
@@ -175,7 +180,7 @@ void lu_parallel_for(int64_t n, int64_t grain, lu_range_fn fn, void *ctx, const 
         if (grain < 1) grain = 1;
     }
     if (grain > n) grain = n; /* keeps begin + grain from overflowing */
-    job j = {.n = n, .grain = grain, .fn = fn, .ctx = ctx, .next_index = 1};
+    job j = {.n = n, .grain = grain, .fn = fn, .ctx = ctx, .account = lu_mem_account_current(), .next_index = 1};
     atomic_init(&j.next, 0);
     atomic_init(&j.done, 0);
     int64_t chunks = (n - 1) / grain + 1;

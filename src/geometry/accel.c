@@ -16,6 +16,7 @@
  * outward for counter-clockwise triangles, which is lucent's convention; the
  * tests check it against analytic boxes and spheres. */
 #include "geometry_internal.h"
+#include "core/memory.h"
 
 #include <embree3/rtcore.h>
 #include <float.h>
@@ -45,6 +46,9 @@ struct lu_accel {
     atomic_int has_error;
     enum RTCError error_code;
     char error_text[256];
+    /* Embree's memory, charged to the account in use when the device was
+     * made (the monitor may run on Embree's build threads). */
+    lu_mem_account *account;
 };
 
 bool lu_accel_is_committed(const lu_accel *a) { return a && a->committed; }
@@ -94,6 +98,12 @@ lu_result lu_accel_create(lu_accel **out, lu_error *err) {
     return LU_OK;
 }
 
+static bool on_embree_memory(void *user, ssize_t bytes, bool post) {
+    (void)post;
+    lu_mem_add(((lu_accel *)user)->account, LU_MEM_ACCEL, (long long)bytes);
+    return true;
+}
+
 /* Device and scene are made on first use, so creating an accel is cheap and
  * cannot fail for Embree reasons. */
 static lu_result ensure_scene(lu_accel *a, lu_error *err) {
@@ -104,6 +114,8 @@ static lu_result ensure_scene(lu_accel *a, lu_error *err) {
             return lu_fail(err, LU_ERR_BACKEND, "embree: device creation failed: %s",
                            rtc_error_name(rtcGetDeviceError(NULL)));
         rtcSetDeviceErrorFunction(a->device, on_embree_error, a);
+        a->account = lu_mem_account_hold();
+        rtcSetDeviceMemoryMonitorFunction(a->device, on_embree_memory, a);
         /* all_hits needs filter callbacks, and parity needs back faces. */
         if (rtcGetDeviceProperty(a->device, RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED) != 1)
             return lu_fail(err, LU_ERR_UNSUPPORTED, "embree: this build lacks filter function support");
@@ -202,6 +214,7 @@ void lu_accel_destroy(lu_accel *a) {
      * release in this order so the device (and its TBB arena) really goes. */
     if (a->scene) rtcReleaseScene(a->scene);
     if (a->device) rtcReleaseDevice(a->device);
+    lu_mem_account_release(a->account);
     for (uint32_t i = 0; i < a->count; i++) lu_free(a->meshes[i].verts);
     lu_free(a->meshes);
     lu_free(a);

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "backends/gpu.h"
+#include "core/memory.h"
 #include "methods/frame.h"
 #include "methods/methods.h"
 
@@ -233,11 +234,18 @@ lu_result lu_renderer_make(const lu_renderer_desc *desc, const lu_scene *scene, 
         return r;
     }
     const lu_method *m = lu_method_find(d.method);
-    lu_renderer *rd = lu_calloc(1, sizeof *rd);
+    /* Everything the renderer allocates from here on, itself included, is
+     * charged to its account (lu_renderer_stats.memory). */
+    lu_mem_account *account = lu_mem_account_create();
+    lu_mem_account *outer = lu_mem_account_use(account);
+    lu_renderer *rd = account ? lu_calloc(1, sizeof *rd) : NULL;
     if (!rd) {
+        lu_mem_account_use(outer);
+        lu_mem_account_release(account);
         lu_kv_free(&merged);
         return lu_fail(err, LU_ERR_NOMEM, "out of memory");
     }
+    rd->account = account;
     rd->method = m;
     rd->backend = d.backend;
     rd->progressive = d.progressive;
@@ -258,6 +266,8 @@ lu_result lu_renderer_make(const lu_renderer_desc *desc, const lu_scene *scene, 
         lu_frame_stage_destroy(rd->stage);
         lu_gpu_context_destroy(rd->caller);
         lu_free(rd);
+        lu_mem_account_use(outer);
+        lu_mem_account_release(account);
         /* AUTO promised a working renderer, not a GPU: a device that cannot
          * be made (or was lost while preparing) leaves the CPU. */
         bool from_auto = !desc || desc->backend == LU_BACKEND_AUTO;
@@ -269,6 +279,7 @@ lu_result lu_renderer_make(const lu_renderer_desc *desc, const lu_scene *scene, 
         }
         return r;
     }
+    lu_mem_account_use(outer);
     *out = rd;
     return LU_OK;
 }
@@ -288,6 +299,8 @@ typedef struct rows_request {
 
 static lu_result render_frame(lu_renderer *r, const lu_scene *scene, const rows_request *rows, lu_image *out,
                               lu_error *err);
+static lu_result render_charged(lu_renderer *r, const lu_scene *scene, const rows_request *rows, lu_image *out,
+                                lu_error *err);
 
 lu_result lu_renderer_render(lu_renderer *r, const lu_scene *scene, lu_image *out, lu_error *err) {
     gpu_enter(r);
@@ -304,8 +317,13 @@ lu_result lu_renderer_render_texture(lu_renderer *r, const lu_scene *scene, unsi
                        r->method->name);
     lu_image *img = &r->texture_image;
     if (img->width != scene->camera.width || img->height != scene->camera.height) {
+        /* the renderer's own frame: charged to it, unlike a caller's image */
+        lu_mem_account *outer = lu_mem_account_use(r->account);
         lu_image_destroy(img);
         memset(img, 0, sizeof *img);
+        lu_result e = lu_image_create(img, scene->camera.width, scene->camera.height, err);
+        lu_mem_account_use(outer);
+        if (e != LU_OK) return e;
     }
     gpu_enter(r);
     lu_gpu_output_target(texture);
@@ -341,6 +359,15 @@ static lu_result render_frame(lu_renderer *r, const lu_scene *scene, const rows_
         return lu_fail(err, LU_ERR_INVALID_ARG, "output image is %dx%d but the camera is %dx%d", out->width,
                        out->height, c->width, c->height);
     }
+    /* out is the caller's, so the account is used only from here */
+    lu_mem_account *outer = lu_mem_account_use(r->account);
+    lu_result e = render_charged(r, scene, rows, out, err);
+    lu_mem_account_use(outer);
+    return e;
+}
+
+static lu_result render_charged(lu_renderer *r, const lu_scene *scene, const rows_request *rows, lu_image *out,
+                                lu_error *err) {
     double t0 = lu_time_seconds();
     lu_frame frame;
     lu_result b = lu_frame_stage_begin(r->stage, scene, &frame, err);
@@ -388,6 +415,7 @@ lu_result lu_renderer_get_stats(const lu_renderer *r, lu_renderer_stats *out, lu
     if (!r || !out) return lu_fail(err, LU_ERR_INVALID_ARG, "renderer stats: NULL %s", r ? "out" : "renderer");
     *out = r->stats;
     out->products = lu_frame_stage_stats(r->stage)->count;
+    lu_mem_account_read(r->account, &out->memory);
     return LU_OK;
 }
 
@@ -413,6 +441,8 @@ bool lu_renderer_set_progressive(lu_renderer *r, lu_progressive_fn fn, void *use
 
 void lu_renderer_destroy(lu_renderer *r) {
     if (!r) return;
+    lu_mem_account *account = r->account;
+    lu_mem_account *outer = lu_mem_account_use(account);
     gpu_enter(r);
     r->method->destroy(r->state);
     gpu_leave(r);
@@ -420,6 +450,8 @@ void lu_renderer_destroy(lu_renderer *r) {
     lu_gpu_context_destroy(r->caller);
     lu_image_destroy(&r->texture_image);
     lu_free(r);
+    lu_mem_account_use(outer);
+    lu_mem_account_release(account);
 }
 
 void lu_renderer_invalidate(lu_renderer *r, unsigned what) { lu_frame_stage_invalidate(r->stage, what); }

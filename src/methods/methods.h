@@ -19,6 +19,7 @@ struct lu_renderer {
     lu_renderer_stats stats;
     struct lu_gpu_context *caller;  /* gl_caller_context: the caller's context the GPU work runs in */
     lu_image texture_image;         /* lu_renderer_render_texture's CPU frame, kept between frames */
+    struct lu_mem_account *account; /* charged with what its calls allocate (core/memory.h) */
 };
 
 extern const lu_method lu_method_reference;

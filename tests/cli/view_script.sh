@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # lucent view --script orbit|light --frames N --stats FILE.csv under Xvfb:
-# the CSV has the header frame,ms,scale,rel_l2,rss_kb and a row per frame (frame 0
+# the CSV has the header frame,ms,scale,rel_l2,rss_kb,held_kb and a row per frame (frame 0
 # the start view, 1..N scripted, then the settle); with a tiny budget the
 # moving frames are rendered below full resolution, with an ample one at full
 # resolution; the settle ends at scale 1 on the full image, which a fresh
@@ -69,13 +69,14 @@ if ! LUCENT_GPU=hardware "$lucent" info --gpu >/dev/null 2>&1; then
   [[ $(grep -c "note: --backend auto: no hardware GPU" "$tmp/e.txt") == 1 ]] || { cat "$tmp/e.txt"; fail "view: auto note"; }
   grep -q "of raymarch on cpu" "$tmp/e.txt" || { cat "$tmp/e.txt"; fail "view: auto without hardware is not the CPU"; }
 fi
-[[ $(head -1 "$tmp/orbit.csv") == "frame,ms,scale,rel_l2,rss_kb" ]] || { head -2 "$tmp/orbit.csv"; fail "CSV header"; }
+[[ $(head -1 "$tmp/orbit.csv") == "frame,ms,scale,rel_l2,rss_kb,held_kb" ]] || { head -2 "$tmp/orbit.csv"; fail "CSV header"; }
 awk -F, -v n=$n '
   NR == 1 { next }
   { rows++; if ($1 != rows - 1) { print "frame column " $1 " at row " rows; bad = 1 }
     if (!($2 > 0)) { print "ms " $2; bad = 1 }
     if (!($3 > 0 && $3 <= 1)) { print "scale " $3; bad = 1 }
     if (!($5 > 0)) { print "rss_kb " $5; bad = 1 }
+    if (!($6 > 0 && $6 < $5)) { print "held_kb " $6 " (rss_kb " $5 ")"; bad = 1 }
     if ($1 >= 1 && $1 <= n && $3 < 1) low++
     if ($1 >= 1 && $1 < n && $4 != "") { print "rel_l2 on moving frame " $1; bad = 1 }
     if ($1 >= n && $4 == "") { print "no rel_l2 on frame " $1 " (final view)"; bad = 1 }

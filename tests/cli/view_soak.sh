@@ -22,8 +22,9 @@ rc=$?
 # afm refuses the translucent spheres once per cycle; no other method may.
 refused=$(grep -c ': afm: ' "$tmp/err.txt")
 [[ $refused -ge 1 ]] || { cat "$tmp/err.txt"; fail "afm was never tried"; }
-awk -F, -v n=$((frames + 1 - refused)) 'NR == 1 { if ($0 != "frame,ms,scale,rel_l2,rss_kb") { print "header " $0; bad = 1 }; next }
-  { rows++; if (!($5 > 0)) { print "rss_kb " $5 " at frame " $1; bad = 1 } }
+awk -F, -v n=$((frames + 1 - refused)) 'NR == 1 { if ($0 != "frame,ms,scale,rel_l2,rss_kb,held_kb") { print "header " $0; bad = 1 }; next }
+  { rows++; if (!($5 > 0)) { print "rss_kb " $5 " at frame " $1; bad = 1 }
+    if (!($6 > 0)) { print "held_kb " $6 " at frame " $1; bad = 1 } }
   END { if (rows < n) { print rows " rows, expected " n " (a row per frame; a refused one has none)"; bad = 1 }; exit bad }' "$tmp/soak.csv" ||
   fail "soak CSV"
 if grep -v ': afm: \|note: --backend auto\|script soak' "$tmp/err.txt" | grep -q .; then

@@ -385,7 +385,10 @@ lu_result lu_gpu_context_create(lu_gpu_context **out, lu_gpu_device_pref pref, l
     if (ctx) {
         ctx->refs++;
     } else {
+        /* The device serves every renderer of the process: none is charged for it. */
+        lu_mem_account *renderer = lu_mem_account_use(NULL);
         r = context_create(&ctx, pref, err);
+        lu_mem_account_use(renderer);
         if (r == LU_OK) {
             ctx->refs = 1;
             ctx->slot = (int)pref;

@@ -3,6 +3,7 @@
 #define LU_GPU_INTERNAL_H
 
 #include "backends/gpu.h"
+#include "core/memory.h"
 
 #ifdef LU_HAVE_GPU
 #include <epoxy/egl.h>
@@ -28,10 +29,13 @@ struct lu_gpu_program {
     int local_size[3];
 };
 
+/* Each object charges its storage to the memory account in use where it
+ * was made (core/memory.h) until it is destroyed. */
 struct lu_gpu_buffer {
     lu_gpu_context *ctx;
     GLuint id;
     size_t size;
+    lu_mem_account *account;
 };
 
 struct lu_gpu_texture {
@@ -39,6 +43,8 @@ struct lu_gpu_texture {
     GLuint id;
     GLenum target;           /* GL_TEXTURE_3D (density) or GL_TEXTURE_2D (RGBA32F image) */
     int nx, ny, nz;
+    size_t bytes;            /* its storage: R32F or RGBA32F texels */
+    lu_mem_account *account;
 };
 
 /* The GL limits and strings of the current context. */

@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/memory.h"
 #include "kernels/lu_optics.h"
 
 /* ---- the two terms by quadrature ------------------------------------------------ */
@@ -248,7 +249,12 @@ lu_result lu_bssrdf_pbd_table_get(double eta, const lu_bssrdf_pbd_table **out, l
     if (slot < 0) {
         r = lu_fail(err, LU_ERR_LIMIT, "bssrdf: pbd tables for more than %d indices of refraction", PBD_CACHE);
     } else {
-        if (!g_pbd[slot]) r = table_build(eta, &g_pbd[slot], err);
+        if (!g_pbd[slot]) {
+            /* the process's table, not the renderer's that asked first */
+            lu_mem_account *renderer = lu_mem_account_use(NULL);
+            r = table_build(eta, &g_pbd[slot], err);
+            lu_mem_account_use(renderer);
+        }
         *out = g_pbd[slot];
     }
     pthread_mutex_unlock(&g_pbd_mu);
