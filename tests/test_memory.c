@@ -205,11 +205,17 @@ static void run_case(const case_ *c, lu_backend backend) {
         CHECK_OK(lu_renderer_render(r, &sc, &img, &err), &err);
         check_figure(what, r, m0, &st);
         if (strcmp(c->method, "froxel") == 0) {
-            /* two lighting grids (reprojection keeps the last) and the integral */
+            /* two lighting grids (reprojection keeps the last) and the integral,
+             * where the cells are lit: in CPU memory or on the GPU, not both */
             size_t cells = (size_t)24 * 14 * 16;
             size_t least = 3 * cells * 8 * sizeof(float);
-            CHECK_MSG(st.memory.bytes >= least, "froxel holds %zu bytes, its grids alone are %zu", st.memory.bytes,
-                      least);
+            bool gpu = backend == LU_BACKEND_GPU;
+            size_t there = gpu ? st.memory.gpu_bytes : st.memory.bytes;
+            CHECK_MSG(there >= least, "froxel holds %zu bytes on the %s, its grids alone are %zu", there,
+                      lu_backend_name(backend), least);
+            if (gpu)
+                CHECK_MSG(st.memory.bytes < least, "froxel on the GPU holds %zu bytes in CPU memory (grids: %zu)",
+                          st.memory.bytes, least);
         }
         if (backend == LU_BACKEND_GPU) {
             size_t frame = (size_t)48 * 27 * 3 * sizeof(float);

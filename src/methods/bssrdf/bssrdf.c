@@ -22,7 +22,7 @@
  *      (lu_k_ball_screen_rect) into 16 x 16 pixel tiles, in splat order;
  *   5. splat + deferred pass (CPU loop or the GPU shader, same kernel):
  *      per pixel, the sum over its tile's splats of the same object, then
- *      lu_k_bssrdf_shade (F_t/pi weighting, Blinn-Phong highlight, shadows
+ *      lu_k_bssrdf_shade (F_t exit_norm / pi weighting, Blinn-Phong highlight, shadows
  *      for opaque objects from the same light-space maps, SH9 irradiance).
  * Steps 1-2 read the lights and never the camera: they are kept across
  * camera moves and redone per light that changed; 3-4 are redone when the

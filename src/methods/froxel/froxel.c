@@ -147,9 +147,11 @@ static lu_result fx_prepare(const lu_scene *scene, const double *params, lu_back
     if (r == LU_OK) {
         size_t columns = (size_t)st->nx * st->ny;
         st->cspans = lu_malloc(columns * (1 + (size_t)scene->medium_count * 2) * sizeof(float));
-        for (int b = 0; b < 2; b++) st->lit[b] = lu_calloc(cells * LU_K_FX_CELL_FLOATS, sizeof(float));
-        st->integ = lu_calloc((cells + columns) * LU_K_FX_CELL_FLOATS, sizeof(float));
-        if (!st->cspans || !st->lit[0] || !st->lit[1] || !st->integ)
+        /* The cell grids live where the cells are lit: on the GPU, only there. */
+        bool cpu = backend == LU_BACKEND_CPU;
+        for (int b = 0; b < 2 && cpu; b++) st->lit[b] = lu_calloc(cells * LU_K_FX_CELL_FLOATS, sizeof(float));
+        if (cpu) st->integ = lu_calloc((cells + columns) * LU_K_FX_CELL_FLOATS, sizeof(float));
+        if (!st->cspans || (cpu && (!st->lit[0] || !st->lit[1] || !st->integ)))
             r = lu_fail(err, LU_ERR_NOMEM, "froxel: out of memory for a %dx%dx%d grid", st->nx, st->ny, st->nz);
     }
     if (r == LU_OK) r = lu_media_rays_init(&st->mr, scene, st->res, false, err);
