@@ -15,22 +15,18 @@ struct lu_raymarch_gpu {
 
 lu_result lu_raymarch_gpu_create(const lu_scene *scene, lu_raymarch_gpu **out, lu_error *err) {
     *out = NULL;
-    lu_raymarch_gpu *g = lu_calloc(1, sizeof *g);
-    if (!g) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     static const lu_gpu_method_program programs[] = {{"methods/raymarch/raymarch.comp", NULL}, {NULL, NULL}};
-    lu_result r = lu_gpu_method_init(&g->m, scene, programs, err);
-    if (r != LU_OK) {
-        lu_free(g);
-        return r;
-    }
+    lu_gpu_method *m;
+    lu_result r = lu_gpu_method_create(sizeof(lu_raymarch_gpu), scene, programs, "raymarch", &m, err);
+    if (r != LU_OK) return r;
+    lu_raymarch_gpu *g = (lu_raymarch_gpu *)m;
     *out = g;
     return LU_OK;
 }
 
 void lu_raymarch_gpu_destroy(lu_raymarch_gpu *g) {
     if (!g) return;
-    lu_gpu_method_release(&g->m);
-    lu_free(g);
+    lu_gpu_method_destroy(&g->m);
 }
 
 lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, const lu_frame_records *rec,
