@@ -23,15 +23,12 @@ struct lu_afm_gpu {
 };
 
 lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *err) {
-    *out = NULL;
     static const lu_gpu_method_program programs[] = {
         {"methods/afm/afm_build.comp", NULL}, {"methods/afm/afm_render.comp", NULL}, {NULL, NULL}};
     lu_gpu_method *m;
     lu_result r = lu_gpu_method_create(sizeof(lu_afm_gpu), scene, programs, "afm", &m, err);
-    if (r != LU_OK) return r;
-    lu_afm_gpu *g = (lu_afm_gpu *)m;
-    *out = g;
-    return LU_OK;
+    *out = (lu_afm_gpu *)m;   /* NULL on failure */
+    return r;
 }
 
 void lu_afm_gpu_destroy(lu_afm_gpu *g) {

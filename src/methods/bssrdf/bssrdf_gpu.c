@@ -23,14 +23,11 @@ struct lu_bssrdf_gpu {
 };
 
 lu_result lu_bssrdf_gpu_create(lu_bssrdf_gpu **out, lu_error *err) {
-    *out = NULL;
     static const lu_gpu_method_program programs[] = {{"methods/bssrdf/bssrdf.comp", NULL}, {NULL, NULL}};
     lu_gpu_method *m;
     lu_result r = lu_gpu_method_create(sizeof(lu_bssrdf_gpu), NULL, programs, "bssrdf", &m, err);
-    if (r != LU_OK) return r;
-    lu_bssrdf_gpu *g = (lu_bssrdf_gpu *)m;
-    *out = g;
-    return LU_OK;
+    *out = (lu_bssrdf_gpu *)m;   /* NULL on failure */
+    return r;
 }
 
 void lu_bssrdf_gpu_destroy(lu_bssrdf_gpu *g) {

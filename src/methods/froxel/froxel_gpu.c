@@ -20,14 +20,11 @@ struct lu_froxel_gpu {
 };
 
 lu_result lu_froxel_gpu_create(const lu_scene *scene, lu_froxel_gpu **out, lu_error *err) {
-    *out = NULL;
     static const lu_gpu_method_program programs[] = {{"methods/froxel/froxel.comp", NULL}, {NULL, NULL}};
     lu_gpu_method *m;
     lu_result r = lu_gpu_method_create(sizeof(lu_froxel_gpu), scene, programs, "froxel", &m, err);
-    if (r != LU_OK) return r;
-    lu_froxel_gpu *g = (lu_froxel_gpu *)m;
-    *out = g;
-    return LU_OK;
+    *out = (lu_froxel_gpu *)m;   /* NULL on failure */
+    return r;
 }
 
 void lu_froxel_gpu_destroy(lu_froxel_gpu *g) {
