@@ -186,6 +186,25 @@ static void test_exr_float_round_trip_exact(void) {
     lu_image_destroy(&b);
 }
 
+/* A frame whose first ZIP chunk deflates to exactly its packed size: the
+ * OpenEXR library stores the zlib bytes then and readers take them for raw
+ * pixels, so this file came back with NaN values before lu_exr_save stored
+ * the packed pixels in that case (src/image/exr.c). */
+static void test_exr_zip_equal_size(void) {
+    lu_error err;
+    lu_image a = {0}, b = {0};
+    CHECK_OK(lu_image_load(LU_SOURCE_DIR "/tests/data/exr_zip_equal_size.pfm", &a, &err), &err);
+    const char *path = "test_image_zip_equal.exr";
+    CHECK_OK(lu_image_save(&a, path, NULL, &err), &err);
+    CHECK_OK(lu_image_load(path, &b, &err), &err);
+    CHECK(a.rgb && b.rgb && b.width == a.width && b.height == a.height);
+    if (a.rgb && b.rgb && b.width == a.width && b.height == a.height)
+        CHECK(memcmp(a.rgb, b.rgb, sizeof(float) * 3 * a.width * a.height) == 0);
+    remove(path);
+    lu_image_destroy(&a);
+    lu_image_destroy(&b);
+}
+
 static void test_exr_half_round_trip(void) {
     lu_error err;
     lu_image a, b;
@@ -635,6 +654,7 @@ int main(void) {
     RUN_TEST(test_pfm_hand_written);
     RUN_TEST(test_pfm_malformed);
     RUN_TEST(test_exr_float_round_trip_exact);
+    RUN_TEST(test_exr_zip_equal_size);
     RUN_TEST(test_exr_half_round_trip);
     RUN_TEST(test_exr_tiled_uint_grey);
     RUN_TEST(test_exr_malformed);

@@ -209,6 +209,24 @@ lu_result lu_exr_load(const char *path, lu_image *img, lu_error *err) {
     return res;
 }
 
+/* OpenEXRCore up to 3.4.7 (this build's is older) keeps the zlib stream of a
+ * chunk when it is exactly as long as the packed pixels, and every reader
+ * then takes those bytes for raw pixels (upstream issue 2306): a 48x27
+ * bssrdf frame came back with 7 NaN values. In that case the packed pixels
+ * are stored instead, which is what the format means by equal sizes. */
+typedef struct exr_compress_hook {
+    exr_result_t (*compress)(exr_encode_pipeline_t *enc);
+} exr_compress_hook;
+
+static exr_result_t compress_not_equal(exr_encode_pipeline_t *enc) {
+    const exr_compress_hook *hook = enc->encoding_user_data;
+    exr_result_t rv = hook->compress(enc);
+    if (rv == EXR_ERR_SUCCESS && enc->compressed_bytes == enc->packed_bytes && enc->compressed_buffer &&
+        enc->compressed_buffer != enc->packed_buffer)
+        memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+    return rv;
+}
+
 lu_result lu_exr_save(const lu_image *img, const char *path, bool half, lu_error *err) {
     lu_atomic_file f;
     lu_result res = lu_atomic_open(&f, path, err);
@@ -233,6 +251,7 @@ lu_result lu_exr_save(const lu_image *img, const char *path, bool half, lu_error
     if (rv == EXR_ERR_SUCCESS) rv = exr_get_scanlines_per_chunk(ctx, part, &lines);
 
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+    exr_compress_hook hook = {NULL};
     bool started = false;
     for (int y = 0; rv == EXR_ERR_SUCCESS && y < img->height; y += lines) {
         exr_chunk_info_t ci;
@@ -250,6 +269,11 @@ lu_result lu_exr_save(const lu_image *img, const char *path, bool half, lu_error
             cc->user_bytes_per_element = sizeof(float);
         }
         rv = exr_encoding_choose_default_routines(ctx, part, &enc);
+        if (rv == EXR_ERR_SUCCESS && enc.compress_fn) {
+            hook.compress = enc.compress_fn;
+            enc.encoding_user_data = &hook;
+            enc.compress_fn = compress_not_equal;
+        }
         if (rv == EXR_ERR_SUCCESS) rv = exr_encoding_run(ctx, part, &enc);
     }
     if (started) exr_encoding_destroy(ctx, &enc);

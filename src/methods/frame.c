@@ -11,6 +11,7 @@
 #include <stdlib.h>
 
 #include "methods/common/gpu_scene.h"
+#include "methods/methods.h"
 #include <string.h>
 
 struct lu_frame_stage {
@@ -52,20 +53,25 @@ lu_result lu_frame_records_update(lu_frame_records *rec, const lu_scene *scene, 
         rec->medium_cap = scene->medium_count;
     }
     if (scene->light_count > rec->light_cap) {
-        lu_k_light *l = lu_realloc(rec->lights, (size_t)scene->light_count * sizeof *l);
-        if (!l) return lu_fail(err, LU_ERR_NOMEM, "frame records: out of memory");
-        rec->lights = l;
+        size_t n = (size_t)scene->light_count;
+        lu_k_light *l = lu_realloc(rec->lights, n * sizeof *l);
+        if (l) rec->lights = l;
+        lu_k_light *a = l ? lu_realloc(rec->scene_lights, n * sizeof *a) : NULL;
+        if (a) rec->scene_lights = a;
+        if (!l || !a) return lu_fail(err, LU_ERR_NOMEM, "frame records: out of memory");
         rec->light_cap = scene->light_count;
     }
     for (int m = 0; m < scene->medium_count; m++) rec->media[m] = lu_medium_to_kernel(&scene->media[m]);
     rec->medium_count = scene->medium_count;
     rec->light_count = scene->light_count ? lu_scene_kernel_lights(scene, rec->lights) : 0;
+    for (int l = 0; l < scene->light_count; l++) rec->scene_lights[l] = lu_light_to_kernel(&scene->lights[l]);
     return LU_OK;
 }
 
 void lu_frame_records_free(lu_frame_records *rec) {
     lu_free(rec->media);
     lu_free(rec->lights);
+    lu_free(rec->scene_lights);
     memset(rec, 0, sizeof *rec);
 }
 

@@ -24,6 +24,7 @@ typedef struct lu_frame_records {
     int medium_count, medium_cap;
     lu_k_light *lights;              /* lu_scene_kernel_lights: scene order, environment lights left out */
     int light_count, light_cap;
+    lu_k_light *scene_lights;        /* every light in scene order, environments included (scene->light_count) */
 } lu_frame_records;
 
 /* Rebuilds *rec from scene (zero-initialised the first time). */

@@ -23,25 +23,18 @@ struct lu_afm_gpu {
 };
 
 lu_result lu_afm_gpu_create(const lu_scene *scene, lu_afm_gpu **out, lu_error *err) {
-    *out = NULL;
-    lu_afm_gpu *g = lu_calloc(1, sizeof *g);
-    if (!g) return lu_fail(err, LU_ERR_NOMEM, "afm: out of memory");
     static const lu_gpu_method_program programs[] = {
         {"methods/afm/afm_build.comp", NULL}, {"methods/afm/afm_render.comp", NULL}, {NULL, NULL}};
-    lu_result r = lu_gpu_method_init(&g->m, scene, programs, err);
-    if (r != LU_OK) {
-        lu_free(g);
-        return r;
-    }
-    *out = g;
-    return LU_OK;
+    lu_gpu_method *m;
+    lu_result r = lu_gpu_method_create(sizeof(lu_afm_gpu), scene, programs, "afm", &m, err);
+    *out = (lu_afm_gpu *)m;   /* NULL on failure */
+    return r;
 }
 
 void lu_afm_gpu_destroy(lu_afm_gpu *g) {
     if (!g) return;
     lu_gpu_buffer_destroy(g->lspans);
-    lu_gpu_method_release(&g->m);
-    lu_free(g);
+    lu_gpu_method_destroy(&g->m);
 }
 
 size_t lu_afm_gpu_limits(const lu_afm_gpu *g, bool *loop_cap) {

@@ -758,7 +758,7 @@ static lu_result build_light(bssrdf_state *st, const lu_frame *f, int l, const l
         L[3] = -1.0f;
         return LU_OK;
     }
-    lu_k_light k = lu_light_to_kernel(li);
+    lu_k_light k = f->rec->scene_lights[l];
     L[0] = k.position.x, L[1] = k.position.y, L[2] = k.position.z, L[3] = (float)k.type;
     L[4] = k.direction.x, L[5] = k.direction.y, L[6] = k.direction.z, L[7] = k.cos_inner;
     L[8] = k.intensity.x, L[9] = k.intensity.y, L[10] = k.intensity.z, L[11] = k.cos_outer;
@@ -911,7 +911,6 @@ static lu_result push_splat(lu_k_splat **splats, int *count, int *cap_io, const 
 
 /* Light l's splats (bssrdf.splats), finished for their objects' materials. */
 static lu_result light_splats(bssrdf_state *st, const lu_frame *frame, int l, lu_error *err) {
-    const lu_scene *scene = frame->scene;
     int res = (int)st->p[P_MAP_RES];
     float jitter = (float)st->p[P_JITTER];
     uint32_t seed = (uint32_t)st->p[P_SEED];
@@ -921,7 +920,7 @@ static lu_result light_splats(bssrdf_state *st, const lu_frame *frame, int l, lu
         const float *L = st->lights + (size_t)l * LU_K_BSSRDF_LIGHT_FLOATS;
         if (L[3] < 0.0f) return LU_OK;
         int first = (int)L[12], count = (int)L[13];
-        lu_k_light kl = lu_light_to_kernel(&scene->lights[l]);
+        lu_k_light kl = frame->rec->scene_lights[l];
         for (int ti = 0; ti < st->tcount; ti++) {
             const tobject *t = &st->t[ti];
             int rects[6][4];
@@ -1170,7 +1169,7 @@ static lu_result bssrdf_render(void *state, const lu_frame *frame, lu_image *out
     if (scene->object_count != st->object_count)
         return lu_fail(err, LU_ERR_INVALID_ARG, "bssrdf: the scene's objects changed since prepare");
     const lu_camera *c = &scene->camera;
-    frame_job j = {st, scene, lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height),
+    frame_job j = {st, scene, frame->rec->cam,
                    c->width, c->height, (c->width + TILE - 1) / TILE, (c->height + TILE - 1) / TILE, out};
     double t0 = lu_time_seconds(), c0 = cpu_seconds();
     /* Light side: none of it depends on the camera. */

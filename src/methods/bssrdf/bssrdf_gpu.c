@@ -23,24 +23,17 @@ struct lu_bssrdf_gpu {
 };
 
 lu_result lu_bssrdf_gpu_create(lu_bssrdf_gpu **out, lu_error *err) {
-    *out = NULL;
-    lu_bssrdf_gpu *g = lu_calloc(1, sizeof *g);
-    if (!g) return lu_fail(err, LU_ERR_NOMEM, "bssrdf: out of memory");
     static const lu_gpu_method_program programs[] = {{"methods/bssrdf/bssrdf.comp", NULL}, {NULL, NULL}};
-    lu_result r = lu_gpu_method_init(&g->m, NULL, programs, err);
-    if (r != LU_OK) {
-        lu_free(g);
-        return r;
-    }
-    *out = g;
-    return LU_OK;
+    lu_gpu_method *m;
+    lu_result r = lu_gpu_method_create(sizeof(lu_bssrdf_gpu), NULL, programs, "bssrdf", &m, err);
+    *out = (lu_bssrdf_gpu *)m;   /* NULL on failure */
+    return r;
 }
 
 void lu_bssrdf_gpu_destroy(lu_bssrdf_gpu *g) {
     if (!g) return;
-    lu_gpu_method_release(&g->m);
     lu_free(g->staging);
-    lu_free(g);
+    lu_gpu_method_destroy(&g->m);
 }
 
 static lu_result put(lu_bssrdf_gpu *g, int i, const void *data, size_t bytes, bool keep, lu_error *err) {

@@ -27,13 +27,17 @@ typedef struct lu_gpu_method_program {
     const char *name, *defines;
 } lu_gpu_method_program;
 
-/* programs: a list ending with a NULL name, each compiled with its own
+/* Makes a driver of `size` bytes, zeroed, whose first member is its
+ * lu_gpu_method, with the device, the programs and the GPU scene made.
+ * programs: a list ending with a NULL name, each compiled with its own
  * defines and then the scene's (lu_gpu_scene_defines); scene NULL: no GPU
- * scene, no scene defines, slots from binding 0. On failure everything made
- * so far is released. */
-lu_result lu_gpu_method_init(lu_gpu_method *m, const lu_scene *scene, const lu_gpu_method_program *programs,
-                             lu_error *err);
-void lu_gpu_method_release(lu_gpu_method *m);
+ * scene, no scene defines, slots from binding 0. `method` names it in the
+ * out-of-memory error. On failure everything made so far is released. */
+lu_result lu_gpu_method_create(size_t size, const lu_scene *scene, const lu_gpu_method_program *programs,
+                               const char *method, lu_gpu_method **out, lu_error *err);
+/* Releases the slots, the GPU scene, the programs and the device, then the
+ * driver (what the driver adds of its own it releases first). */
+void lu_gpu_method_destroy(lu_gpu_method *m);
 /* lu_gpu_buffer_put into slot i. */
 lu_result lu_gpu_method_put(lu_gpu_method *m, int i, const void *data, size_t bytes, lu_error *err);
 /* lu_gpu_buffer_put_versioned into slot i: uploads only a new version. */

@@ -21,16 +21,13 @@ struct lu_ddod_gpu {
 
 lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error *err) {
     *out = NULL;
-    lu_ddod_gpu *g = lu_calloc(1, sizeof *g);
-    if (!g) return lu_fail(err, LU_ERR_NOMEM, "ddod: out of memory");
     static const lu_gpu_method_program programs[] = {{"methods/ddod/ddod.comp", "#define LU_DDOD_PASS 1\n"},
                                                      {"methods/ddod/ddod.comp", "#define LU_DDOD_PASS 2\n"},
                                                      {NULL, NULL}};
-    lu_result r = lu_gpu_method_init(&g->m, scene, programs, err);
-    if (r != LU_OK) {
-        lu_free(g);
-        return r;
-    }
+    lu_gpu_method *m;
+    lu_result r = lu_gpu_method_create(sizeof(lu_ddod_gpu), scene, programs, "ddod", &m, err);
+    if (r != LU_OK) return r;
+    lu_ddod_gpu *g = (lu_ddod_gpu *)m;
     lu_gpu_info info;
     lu_gpu_info_get(g->m.ctx, &info);
     g->loop_cap = info.loop_cap;
@@ -40,8 +37,7 @@ lu_result lu_ddod_gpu_create(const lu_scene *scene, lu_ddod_gpu **out, lu_error 
 
 void lu_ddod_gpu_destroy(lu_ddod_gpu *g) {
     if (!g) return;
-    lu_gpu_method_release(&g->m);
-    lu_free(g);
+    lu_gpu_method_destroy(&g->m);
 }
 
 static void set_uniforms(lu_gpu_program *p, const lu_ddod_frame *f) {

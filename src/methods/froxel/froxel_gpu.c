@@ -20,24 +20,17 @@ struct lu_froxel_gpu {
 };
 
 lu_result lu_froxel_gpu_create(const lu_scene *scene, lu_froxel_gpu **out, lu_error *err) {
-    *out = NULL;
-    lu_froxel_gpu *g = lu_calloc(1, sizeof *g);
-    if (!g) return lu_fail(err, LU_ERR_NOMEM, "froxel: out of memory");
     static const lu_gpu_method_program programs[] = {{"methods/froxel/froxel.comp", NULL}, {NULL, NULL}};
-    lu_result r = lu_gpu_method_init(&g->m, scene, programs, err);
-    if (r != LU_OK) {
-        lu_free(g);
-        return r;
-    }
-    *out = g;
-    return LU_OK;
+    lu_gpu_method *m;
+    lu_result r = lu_gpu_method_create(sizeof(lu_froxel_gpu), scene, programs, "froxel", &m, err);
+    *out = (lu_froxel_gpu *)m;   /* NULL on failure */
+    return r;
 }
 
 void lu_froxel_gpu_destroy(lu_froxel_gpu *g) {
     if (!g) return;
     for (int i = 0; i < 2; i++) lu_gpu_buffer_destroy(g->lit[i]);
-    lu_gpu_method_release(&g->m);
-    lu_free(g);
+    lu_gpu_method_destroy(&g->m);
 }
 
 static lu_result put(lu_froxel_gpu *g, int i, const void *data, size_t bytes, lu_error *err) {

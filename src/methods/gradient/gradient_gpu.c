@@ -23,23 +23,15 @@ struct lu_gradient_gpu {
 };
 
 lu_result lu_gradient_gpu_create(const lu_scene *scene, lu_gradient_gpu **out, lu_error *err) {
-    *out = NULL;
-    lu_gradient_gpu *g = lu_calloc(1, sizeof *g);
-    if (!g) return lu_fail(err, LU_ERR_NOMEM, "gradient: out of memory");
     static const lu_gpu_method_program programs[] = {{"methods/gradient/gradient.comp", NULL}, {NULL, NULL}};
-    lu_result r = lu_gpu_method_init(&g->m, scene, programs, err);
-    if (r != LU_OK) {
-        lu_free(g);
-        return r;
-    }
-    *out = g;
-    return LU_OK;
+    lu_gpu_method *m;
+    lu_result r = lu_gpu_method_create(sizeof(lu_gradient_gpu), scene, programs, "gradient", &m, err);
+    *out = (lu_gradient_gpu *)m;   /* NULL on failure */
+    return r;
 }
 
 void lu_gradient_gpu_destroy(lu_gradient_gpu *g) {
-    if (!g) return;
-    lu_gpu_method_release(&g->m);
-    lu_free(g);
+    if (g) lu_gpu_method_destroy(&g->m);
 }
 
 static lu_result bind_common(lu_gradient_gpu *g, const lu_scene *scene, const lu_gradient_frame *f, lu_error *err) {

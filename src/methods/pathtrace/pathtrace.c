@@ -1023,7 +1023,6 @@ static void pt_destroy(void *state) {
     lu_free(st->envs);
     lu_free(st->media);
     lu_free(st->surf_info);
-    lu_free(st->klights);
     lu_free(st->light_mask);
     lu_free(st->beam_buf);
     lu_free(st->stats_buf);
@@ -1186,14 +1185,13 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
     st->kctx.st = st;
     st->out = out;
     const lu_camera *c = &scene->camera;
-    st->cam = lu_k_camera_make(c->position, c->look_at, c->up, c->fov_y_deg, c->width, c->height);
-    lu_free(st->klights);
+    st->cam = frame->rec->cam;
+    st->klights = frame->rec->scene_lights;
     lu_free(st->light_mask);
     size_t nl = (size_t)(scene->light_count ? scene->light_count : 1);
-    st->klights = lu_calloc(nl, sizeof *st->klights);
     st->light_mask = lu_calloc(nl, sizeof *st->light_mask);
     st->accum = lu_calloc((size_t)c->width * c->height * 3, sizeof *st->accum);
-    if (!st->klights || !st->light_mask || !st->accum) {
+    if (!st->light_mask || !st->accum) {
         lu_free(st->accum);
         st->accum = NULL;
         return lu_fail(err, LU_ERR_NOMEM, "pathtrace: out of memory");
@@ -1202,7 +1200,6 @@ static lu_result pt_render_impl(void *state, const lu_frame *frame, lu_image *ou
     st->have_point_lights = false;
     st->delta_light_count = 0;
     for (int l = 0; l < scene->light_count; l++) {
-        st->klights[l] = lu_light_to_kernel(&scene->lights[l]);
         if (scene->lights[l].type == LU_LIGHT_ENVIRONMENT) continue;
         st->have_delta_lights = true;
         st->have_point_lights |= scene->lights[l].type != LU_LIGHT_DIRECTIONAL;

@@ -135,7 +135,7 @@ struct pt_state {
     const lu_scene *scene;
     struct lu_k_ctx kctx;
     lu_k_camera cam;
-    lu_k_light *klights;
+    const lu_k_light *klights;   /* the frame's records: every light in scene order */
     uint64_t *light_mask; /* inside mask at each light's position */
     uint64_t camera_mask;
     bool have_delta_lights;

@@ -14,23 +14,15 @@ struct lu_raymarch_gpu {
 };
 
 lu_result lu_raymarch_gpu_create(const lu_scene *scene, lu_raymarch_gpu **out, lu_error *err) {
-    *out = NULL;
-    lu_raymarch_gpu *g = lu_calloc(1, sizeof *g);
-    if (!g) return lu_fail(err, LU_ERR_NOMEM, "raymarch: out of memory");
     static const lu_gpu_method_program programs[] = {{"methods/raymarch/raymarch.comp", NULL}, {NULL, NULL}};
-    lu_result r = lu_gpu_method_init(&g->m, scene, programs, err);
-    if (r != LU_OK) {
-        lu_free(g);
-        return r;
-    }
-    *out = g;
-    return LU_OK;
+    lu_gpu_method *m;
+    lu_result r = lu_gpu_method_create(sizeof(lu_raymarch_gpu), scene, programs, "raymarch", &m, err);
+    *out = (lu_raymarch_gpu *)m;   /* NULL on failure */
+    return r;
 }
 
 void lu_raymarch_gpu_destroy(lu_raymarch_gpu *g) {
-    if (!g) return;
-    lu_gpu_method_release(&g->m);
-    lu_free(g);
+    if (g) lu_gpu_method_destroy(&g->m);
 }
 
 lu_result lu_raymarch_gpu_render(lu_raymarch_gpu *g, const lu_scene *scene, const lu_frame_records *rec,

@@ -101,7 +101,7 @@ typedef struct ref_state {
     const lu_scene *scene;
     struct lu_k_ctx kctx;
     lu_k_camera cam;
-    lu_k_light *klights;
+    const lu_k_light *klights;   /* the frame's records: every light in scene order */
     lu_image *out;
     bool overflow;             /* a ray crossed more than MAX_CROSSINGS boundary faces */
     bool nomem;                /* a ray's piece list could not grow (its pixel is then wrong) */
@@ -571,7 +571,6 @@ static void ref_destroy(void *state) {
     lu_free(st->scratch);
     lu_free(st->media);
     lu_free(st->opaque_object);
-    lu_free(st->klights);
     lu_free(st);
 }
 
@@ -633,10 +632,7 @@ static lu_result ref_render(void *state, const lu_frame *frame, lu_image *out, l
     st->overflow = false;
     st->nomem = false;
     st->cam = frame->rec->cam;
-    lu_free(st->klights);
-    st->klights = lu_calloc((size_t)(scene->light_count ? scene->light_count : 1), sizeof *st->klights);
-    if (!st->klights) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory");
-    for (int l = 0; l < scene->light_count; l++) st->klights[l] = lu_light_to_kernel(&scene->lights[l]);
+    st->klights = frame->rec->scene_lights;
     lu_frame_for_rows(frame, 1, render_rows, st, "reference");
     if (st->nomem) return lu_fail(err, LU_ERR_NOMEM, "reference: out of memory (a ray's transmittance pieces)");
     if (st->overflow)
