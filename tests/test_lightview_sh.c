@@ -1,5 +1,6 @@
 /* Shared kernels: spherical harmonics (orthonormality by quadrature, closed
- * forms, the addition theorem, Lambert convolution constants) and light
+ * forms, the addition theorem, Lambert convolution constants, the projection
+ * of an environment against closed forms within its derived error) and light
  * views (projection inverts the texel rays; shadow maps of a known occluder). */
 #include <lucent/lucent.h>
 
@@ -7,6 +8,7 @@
 
 #include "lu_test.h"
 #include "methods/common/lightview.h"
+#include "methods/common/sh_env.h"
 
 static const float *g_depth;
 static int g_res;
@@ -97,6 +99,74 @@ static void test_sh_lambert(void) {
             sum += t * P[l] / N;
         }
         CHECK_NEAR(lu_k_sh_lambert_band(l), 2 * M_PI * sum, 1e-5);
+    }
+}
+
+/* Channels: the SH polar axis z, the map's polar axis y (lu_k_env_dir's
+ * cos theta), and a constant. */
+static lu_vec3 env_test_radiance(const void *user, lu_vec3 d) {
+    (void)user;
+    return lu_v3(d.z, d.y, 1.0f);
+}
+
+static void test_sh_env_project(void) {
+    /* Exact values: a constant L projects to L 4 pi Y_00 = 2 sqrt(pi) L and
+     * nothing else; L = z = sqrt(4 pi / 3) Y_10 (lu_sh.h: Y_10 = sqrt(3 / (4 pi)) z)
+     * projects to sqrt(4 pi / 3) on Y_10 only, and L = y likewise on Y_1-1.
+     * Error of the rule for an integrand f = L Y_k, a polynomial of degree
+     * n = l + 1 (n = l for the constant) on the sphere: in the map's frame
+     * (polar axis y) the phi sum over np equally spaced cell centres is exact
+     * for the trigonometric degree <= n < np of f in phi, leaving 2 pi times
+     * a 1D rule, sum_j g(theta_j) (cos theta_j0 - cos theta_j1), for g the phi
+     * average of f, a trigonometric polynomial of degree n in theta with
+     * |g| <= max |f|. Per cell (width h = pi / nt), Taylor about the centre:
+     * the linear term leaves |g'| |cos theta_j| int t sin t dt <= |g'| h^3 / 12,
+     * the remainder <= |g''| / 2 int t^2 dt = |g''| h^3 / 24; over nt cells and
+     * with Bernstein's |g'| <= n |g|, |g''| <= n^2 |g|:
+     *   |error| <= 2 pi^2 h^2 max|f| (n / 12 + n^2 / 24),
+     * max|f| <= max|L| sqrt((2l + 1) / (4 pi)) (the addition theorem bounds
+     * each Y_lm), and 0 for the constant's Y_00: that one is exact but for
+     * rounding, as are the odd bands of the constant. Rounding (float
+     * directions, Y and L, double sums) adds well under 1e-5. */
+    int grids[2][2], nt, np;
+    lu_sh_env_grid(8, 4, 1, &nt, &np);   /* ddod's smallest grid */
+    CHECK(nt == 64 && np == 128);
+    grids[0][0] = nt, grids[0][1] = np;
+    lu_sh_env_grid(300, 100, 2, &nt, &np);   /* bssrdf's grid of a 300 x 100 map */
+    CHECK(nt == 200 && np == 600);
+    grids[1][0] = nt, grids[1][1] = np;
+    lu_sh_env_grid(300, 100, 1, &nt, &np);
+    CHECK(nt == 100 && np == 300);
+    const int bands = LU_SH_MAX_BANDS;
+    double c[3 * LU_SH_MAX_COEFFS];
+    for (int g = 0; g < 2; g++) {
+        for (int a = 0; a < 2; a++) {
+            nt = grids[g][0], np = grids[g][1];
+            lu_sh_env_project(env_test_radiance, NULL, nt, np, bands,
+                              a ? LU_SH_ENV_ANGLES_FLOAT : LU_SH_ENV_ANGLES_DOUBLE, c);
+            double h = M_PI / nt, worst[3] = {0, 0, 0}, worst_bound = 0;
+            for (int k = 0; k < bands * bands; k++) {
+                int l = (int)sqrt((double)k + 0.5);
+                double ymax = sqrt((2 * l + 1) / (4 * M_PI));
+                for (int ch = 0; ch < 3; ch++) {
+                    int n = ch == 2 ? l : l + 1;
+                    double exact = 0.0;
+                    if (ch == 0 && k == 2) exact = sqrt(4 * M_PI / 3);
+                    if (ch == 1 && k == 1) exact = sqrt(4 * M_PI / 3);
+                    if (ch == 2 && k == 0) exact = 2 * sqrt(M_PI);
+                    double bound = 2 * M_PI * M_PI * h * h * ymax * (n / 12.0 + n * n / 24.0);
+                    if (ch == 2 && (l == 0 || (l & 1))) bound = 0.0;
+                    double e = fabs(c[3 * k + ch] - exact);
+                    CHECK(e <= bound + 1e-5);
+                    worst[ch] = fmax(worst[ch], e);
+                    worst_bound = fmax(worst_bound, bound);
+                }
+            }
+            fprintf(stderr, "  env SH %dx%d (%s angles): c00 %.7f (2 sqrt(pi) %.7f), c10 %.7f, c1-1 %.7f "
+                    "(sqrt(4pi/3) %.7f); worst errors z %.2g y %.2g const %.2g, largest bound %.2g\n",
+                    nt, np, a ? "float" : "double", c[2], 2 * sqrt(M_PI), c[3 * 2], c[3 * 1 + 1],
+                    sqrt(4 * M_PI / 3), worst[0], worst[1], worst[2], worst_bound);
+        }
     }
 }
 
@@ -213,6 +283,7 @@ int main(void) {
     RUN_TEST(test_sh_closed_forms);
     RUN_TEST(test_sh_addition_theorem);
     RUN_TEST(test_sh_lambert);
+    RUN_TEST(test_sh_env_project);
     RUN_TEST(test_lightview_roundtrip);
     RUN_TEST(test_shadow_map);
     RUN_TEST(test_shadow_cube_seam);

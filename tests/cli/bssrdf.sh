@@ -37,7 +37,9 @@ done
 "$lucent" profile --preset marble --model pbd >"$tmp/q.txt"
 grep -q "model pbd, 512 entries" "$tmp/q.txt" || { echo "FAIL: pbd profile"; cat "$tmp/q.txt"; exit 1; }
 "$lucent" profile --preset marble --model nosuch >/dev/null 2>&1 && { echo "FAIL: unknown model accepted"; exit 1; }
-for b in cpu gpu; do
+backends="cpu gpu"
+have_gpu || backends=cpu
+for b in $backends; do
   "$lucent" render "$src/scenes/bssrdf_spheres.json" --method bssrdf --backend $b --size 48x30 \
     --set bssrdf.splats=600 --set bssrdf.profile=multipole -o "$tmp/$b.exr" 2>/dev/null
 done
@@ -45,6 +47,8 @@ done
 # lit at unit irradiance is a mean well above 0.01).
 "$lucent" info "$tmp/cpu.exr" | awk '$1 == "values" { exit !($NF > 0.01) }' ||
   { echo "FAIL: the CPU image is black"; "$lucent" info "$tmp/cpu.exr"; exit 1; }
-"$lucent" compare "$tmp/gpu.exr" "$tmp/cpu.exr" >"$tmp/c.txt"
-awk '$1 == "rel_l2" { exit !($2 < 1e-4) }' "$tmp/c.txt" || { echo "FAIL: cpu/gpu differ"; cat "$tmp/c.txt"; exit 1; }
+if [[ $backends == *gpu* ]]; then
+  "$lucent" compare "$tmp/gpu.exr" "$tmp/cpu.exr" >"$tmp/c.txt"
+  awk '$1 == "rel_l2" { exit !($2 < 1e-4) }' "$tmp/c.txt" || { echo "FAIL: cpu/gpu differ"; cat "$tmp/c.txt"; exit 1; }
+fi
 echo ok

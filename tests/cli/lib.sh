@@ -80,3 +80,13 @@ require_viewer() {
 asan_skip_tls_interceptor() {
   export ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}intercept_tls_get_addr=0"
 }
+
+# have_gpu: whether this lucent was built with the GPU backend. A script's
+# GPU comparison is skipped (with a line saying so) in a build without it,
+# not counted as passed.
+have_gpu() {
+  if "$lucent" info --gpu 2>&1 | grep -q "built without GPU support"; then
+    echo "  GPU part skipped: this lucent was built without GPU support"
+    return 1
+  fi
+}

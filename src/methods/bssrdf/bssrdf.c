@@ -46,6 +46,7 @@
 #include "methods/bssrdf/bssrdf_profile.h"
 #include "methods/bssrdf/bssrdf_sampling.h"
 #include "methods/common/lightview.h"
+#include "methods/common/sh_env.h"
 #include "methods/frame.h"
 #include "methods/methods.h"
 
@@ -257,26 +258,8 @@ lu_vec3 lu_bssrdf_sh_irradiance(const double L[27], const double k[3], lu_vec3 n
 }
 
 /* One environment map through the kernel's own lookup. */
-static void env_project_ctx(const struct lu_k_ctx *ctx, int e, int w, int h, double L[27]) {
-    int nt = 2 * h > 128 ? 2 * h : 128, np = 2 * nt;
-    if (2 * w > np) np = 2 * w;
-    float y[LU_SH_MAX_COEFFS];
-    for (int i = 0; i < 27; i++) L[i] = 0.0;
-    for (int j = 0; j < nt; j++) {
-        double th0 = M_PI * j / nt, th1 = M_PI * (j + 1) / nt;
-        double dw = (cos(th0) - cos(th1)) * 2.0 * M_PI / np;   /* exact solid angle of the cell */
-        double v = (j + 0.5) / nt;
-        for (int i = 0; i < np; i++) {
-            lu_vec3 d = lu_k_env_dir((float)((i + 0.5) / np), (float)v);
-            vec3 rad = lu_k_bssrdf_env(ctx, e, d);
-            lu_k_sh_eval(d, 3, y);
-            for (int k = 0; k < 9; k++) {
-                L[3 * k] += rad.x * y[k] * dw;
-                L[3 * k + 1] += rad.y * y[k] * dw;
-                L[3 * k + 2] += rad.z * y[k] * dw;
-            }
-        }
-    }
+static lu_vec3 env_radiance(const void *user, lu_vec3 d) {
+    return lu_k_bssrdf_env((const struct lu_k_ctx *)user, 0, d);
 }
 
 void lu_bssrdf_env_project(const lu_light *l, double L[27]) {
@@ -287,7 +270,9 @@ void lu_bssrdf_env_project(const lu_light *l, double L[27]) {
     scene[LU_K_BSSRDF_SCENE_ENV_INFO + 2] = (float)l->env.height;
     scene[LU_K_BSSRDF_SCENE_ENV_INFO + 3] = l->env_scale;
     struct lu_k_ctx ctx = {{NULL, NULL, NULL, NULL, l->env.rgb, scene}, NULL, 0};
-    env_project_ctx(&ctx, 0, l->env.width, l->env.height, L);
+    int nt, np;   /* two cells per texel per axis, at least 128 x 256 */
+    lu_sh_env_grid(l->env.width, l->env.height, 2, &nt, &np);
+    lu_sh_env_project(env_radiance, &ctx, nt, np, 3, LU_SH_ENV_ANGLES_DOUBLE, L);
 }
 
 /* ---- prepare ----------------------------------------------------------------------- */

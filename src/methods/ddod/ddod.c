@@ -21,6 +21,7 @@
 #include "methods/common/media_ray.h"
 #include "methods/common/tile_bins.h"
 #include "methods/common/kernel_ctx.h"
+#include "methods/common/sh_env.h"
 
 /* ---- kernel context: the hooks of lu_ddod.h on the CPU ---- */
 struct lu_k_ctx {
@@ -184,29 +185,19 @@ static float window_weight(int kind, int l, int bands) {
     return 1.0f;
 }
 
-/* Environment lights projected onto the SH of the samples: L_k = int L(w) Y_k(w) dw
- * by a midpoint rule over the map's own cells (at least 64 x 128). */
+static lu_vec3 env_radiance(const void *user, lu_vec3 d) {
+    const lu_light *l = user;
+    return lu_env_lookup(&l->env, l->env_scale, d);
+}
+
+/* Environment lights projected onto the SH of the samples, by a midpoint rule
+ * over the map's own cells (at least 64 x 128). */
 static void env_project(const lu_light *l, int bands, float *out) {
-    int nt = l->env.height > 64 ? l->env.height : 64, np = 2 * nt;
-    if (l->env.width > np) np = l->env.width;
-    int n = bands * bands;
-    double acc[3 * LU_SH_MAX_COEFFS] = {0};
-    float y[LU_SH_MAX_COEFFS];
-    for (int j = 0; j < nt; j++) {
-        double th0 = LU_PI * j / nt, th1 = LU_PI * (j + 1) / nt;
-        double dw = (cos(th0) - cos(th1)) * 2.0 * LU_PI / np;
-        for (int i = 0; i < np; i++) {
-            lu_vec3 d = lu_k_env_dir((float)((i + 0.5) / np), (float)((j + 0.5) / nt));
-            lu_vec3 L = lu_env_lookup(&l->env, l->env_scale, d);
-            lu_k_sh_eval(d, bands, y);
-            for (int k = 0; k < n; k++) {
-                acc[3 * k] += L.x * y[k] * dw;
-                acc[3 * k + 1] += L.y * y[k] * dw;
-                acc[3 * k + 2] += L.z * y[k] * dw;
-            }
-        }
-    }
-    for (int k = 0; k < 3 * n; k++) out[k] += (float)acc[k];
+    int nt, np;
+    lu_sh_env_grid(l->env.width, l->env.height, 1, &nt, &np);
+    double acc[3 * LU_SH_MAX_COEFFS];
+    lu_sh_env_project(env_radiance, l, nt, np, bands, LU_SH_ENV_ANGLES_FLOAT, acc);
+    for (int k = 0; k < 3 * bands * bands; k++) out[k] += (float)acc[k];
 }
 
 /* The windowed copy of the set's SH. */
