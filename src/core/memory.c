@@ -100,6 +100,17 @@ void lu_mem_add(lu_mem_account *a, lu_mem_kind kind, long long bytes) {
         atomic_fetch_add_explicit(kind == LU_MEM_GPU ? &to[i]->gpu : &to[i]->accel, bytes, memory_order_relaxed);
 }
 
+lu_mem_account *lu_mem_charge(lu_mem_kind kind, size_t bytes) {
+    lu_mem_account *a = lu_mem_account_hold();
+    lu_mem_add(a, kind, (long long)bytes);
+    return a;
+}
+
+void lu_mem_discharge(lu_mem_account *a, lu_mem_kind kind, size_t bytes) {
+    lu_mem_add(a, kind, -(long long)bytes);
+    lu_mem_account_release(a);
+}
+
 static size_t as_size(long long v) { return v > 0 ? (size_t)v : 0; }
 
 void lu_mem_account_read(const lu_mem_account *a, lu_memory *out) {

@@ -32,6 +32,11 @@ lu_mem_account *lu_mem_account_hold(void);
 /* Adds bytes (negative: frees them) of a kind to a and to the process's
  * totals; a NULL a charges only the totals. Any thread. */
 void lu_mem_add(lu_mem_account *a, lu_mem_kind kind, long long bytes);
+/* An object's storage of a kind for its lifetime: charged to this thread's
+ * account (held) and the process's totals; returns the account, for
+ * lu_mem_discharge with the same kind and bytes when the object goes. */
+lu_mem_account *lu_mem_charge(lu_mem_kind kind, size_t bytes);
+void lu_mem_discharge(lu_mem_account *a, lu_mem_kind kind, size_t bytes);
 /* What a holds now; zero for NULL. */
 void lu_mem_account_read(const lu_mem_account *a, lu_memory *out);
 

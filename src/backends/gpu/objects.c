@@ -3,7 +3,6 @@
  * messages instead of leaving GL errors queued. */
 #ifdef LU_HAVE_GPU
 #include "backends/gpu/gpu_internal.h"
-#include "core/memory.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -186,8 +185,7 @@ lu_result lu_gpu_buffer_create(lu_gpu_context *ctx, size_t bytes, const void *da
     if (!b) return lu_fail(err, LU_ERR_NOMEM, "gpu: out of memory");
     b->ctx = ctx;
     b->size = bytes;
-    b->account = lu_mem_account_hold();
-    lu_mem_add(b->account, LU_MEM_GPU, (long long)bytes);
+    b->account = lu_mem_charge(LU_MEM_GPU, bytes);
     glCreateBuffers(1, &b->id);
     glNamedBufferData(b->id, (GLsizeiptr)bytes, data, GL_DYNAMIC_COPY);
     if (!data) {
@@ -206,8 +204,7 @@ lu_result lu_gpu_buffer_create(lu_gpu_context *ctx, size_t bytes, const void *da
 void lu_gpu_buffer_destroy(lu_gpu_buffer *buf) {
     if (!buf) return;
     if (lu_gpu_bind_context(buf->ctx, NULL) == LU_OK) glDeleteBuffers(1, &buf->id);
-    lu_mem_add(buf->account, LU_MEM_GPU, -(long long)buf->size);
-    lu_mem_account_release(buf->account);
+    lu_mem_discharge(buf->account, LU_MEM_GPU, buf->size);
     lu_free(buf);
 }
 
@@ -271,8 +268,7 @@ lu_result lu_gpu_texture3d_create(lu_gpu_context *ctx, int nx, int ny, int nz, c
     t->ny = ny;
     t->nz = nz;
     t->bytes = (size_t)nx * ny * nz * sizeof(float);
-    t->account = lu_mem_account_hold();
-    lu_mem_add(t->account, LU_MEM_GPU, (long long)t->bytes);
+    t->account = lu_mem_charge(LU_MEM_GPU, t->bytes);
     glCreateTextures(GL_TEXTURE_3D, 1, &t->id);
     glTextureStorage3D(t->id, 1, GL_R32F, nx, ny, nz);
     /* zero-outside convention of lu_grid_sample: a zero border, linear filter */
@@ -320,8 +316,7 @@ lu_result lu_gpu_image2d_create(lu_gpu_context *ctx, int width, int height, lu_g
     t->ny = height;
     t->nz = 1;
     t->bytes = (size_t)width * height * 4 * sizeof(float);
-    t->account = lu_mem_account_hold();
-    lu_mem_add(t->account, LU_MEM_GPU, (long long)t->bytes);
+    t->account = lu_mem_charge(LU_MEM_GPU, t->bytes);
     glCreateTextures(GL_TEXTURE_2D, 1, &t->id);
     glTextureStorage2D(t->id, 1, GL_RGBA32F, width, height);
     static const float zero[4] = {0, 0, 0, 0};
@@ -350,8 +345,7 @@ lu_result lu_gpu_image2d_download(lu_gpu_texture *tex, float *rgba, lu_error *er
 void lu_gpu_texture_destroy(lu_gpu_texture *tex) {
     if (!tex) return;
     if (lu_gpu_bind_context(tex->ctx, NULL) == LU_OK) glDeleteTextures(1, &tex->id);
-    lu_mem_add(tex->account, LU_MEM_GPU, -(long long)tex->bytes);
-    lu_mem_account_release(tex->account);
+    lu_mem_discharge(tex->account, LU_MEM_GPU, tex->bytes);
     lu_free(tex);
 }
 
